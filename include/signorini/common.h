@@ -1,0 +1,35 @@
+// Shared helpers of the signorini components: error reporting that is safe on many ranks.
+#pragma once
+
+#include <petsc.h>
+
+#include <string>
+#include <vector>
+
+namespace signorini {
+
+// Every error caused by the user's input is raised with this code on *all* ranks at the same point, so
+// main() can print one line and exit cleanly. Any other error code may have been raised on a subset of
+// ranks and makes main() abort the whole job instead of waiting in a collective that never completes.
+constexpr PetscErrorCode kInputError = PETSC_ERR_USER_INPUT;
+
+// Collective check: every rank passes its local verdict; if any rank failed, all ranks raise kInputError
+// with the message of the lowest failing rank. Use it for conditions found by rank-local work (a bad cell,
+// an expression that is NaN somewhere) so that the other ranks do not hang.
+PetscErrorCode CheckAll(MPI_Comm comm, bool ok, const std::string &message);
+
+// Raise kInputError on all ranks (the condition must already be known to every rank).
+#define SIGNORINI_INPUT_ERROR(comm, ...) SETERRQ((comm), ::signorini::kInputError, __VA_ARGS__)
+
+// Parse a comma-separated list of integers ("1,3,4"); empty string gives an empty list.
+PetscErrorCode ParseIntList(MPI_Comm comm, const std::string &option, const std::string &text, std::vector<PetscInt> &values);
+
+// printf-style formatting into a std::string.
+std::string Format(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+
+} // namespace signorini
+
+namespace signorini {
+// The text of the last PETSc error (for errors caught from a call made without PetscCall).
+std::string LastPetscError(PetscErrorCode ierr);
+} // namespace signorini

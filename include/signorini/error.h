@@ -1,0 +1,18 @@
+// Errors of a discrete solution against the exact solution: L2 norm, broken H1 seminorm (sum over cells
+// of |grad(u - u_h)|^2, the natural norm for the nonconforming CR element) and the full broken H1 norm.
+#pragma once
+
+#include "signorini/space.h"
+
+namespace signorini {
+
+struct ErrorNorms {
+  PetscReal l2 = 0, h1semi = 0, h1 = 0;
+};
+
+// Degree of the quadrature used for error integrals (exact for polynomial integrands of that degree).
+PetscErrorCode ErrorOptionsFromCommandLine(MPI_Comm comm, PetscInt &degree);
+// Pushes the Error stage.
+PetscErrorCode ErrorAgainstExact(const Space &space, const Problem &problem, Vec u, PetscInt degree, ErrorNorms &e);
+
+} // namespace signorini

@@ -1,0 +1,47 @@
+// A scalar or vector function of (x, y, z) given as text, in the convention of deal.II's FunctionParser:
+// muparser syntax, variables x, y, z, the constant pi, and comma-separated components for vector values.
+#pragma once
+
+#include "signorini/common.h"
+
+#include <array>
+#include <memory>
+#include <string>
+
+namespace mu {
+class Parser;
+}
+
+namespace signorini {
+
+class Expression {
+public:
+  // `option` names the input in error messages (e.g. "-f"); `components` is 1 for a scalar and dim for a gradient.
+  static PetscErrorCode Create(MPI_Comm comm, const std::string &option, const std::string &text, int components, std::unique_ptr<Expression> &expr);
+  ~Expression();
+  Expression(const Expression &)            = delete;
+  Expression &operator=(const Expression &) = delete;
+
+  // Values at point x (x has `dim` entries; missing coordinates read as 0). A NaN or infinite result returns
+  // false and, if `error` is still empty, describes the first such point there; callers turn a non-empty
+  // `error` into a collective input error after their loop (see CheckAll).
+  bool      Eval(const PetscReal x[], PetscInt dim, PetscReal values[], std::string &error) const;
+  PetscReal Scalar(const PetscReal x[], PetscInt dim, std::string &error) const;
+  // Value of the variable cell_set (the "Cell Sets" label of the cell being integrated; -1 if none).
+  void               SetCellSet(PetscInt v) const { cellSet_ = (double)v; }
+  const std::string &Text() const { return text_; }
+  const std::string &Option() const { return option_; }
+  // True when the text is the constant 0, so that an integral of it can be skipped.
+  bool IsZero() const { return zero_; }
+
+private:
+  Expression() = default;
+  std::unique_ptr<mu::Parser> parser_;
+  mutable std::array<double, 3> xyz_{};
+  mutable double                cellSet_ = -1;
+  std::string                   option_, text_;
+  int                           components_ = 1;
+  bool                          zero_       = false;
+};
+
+} // namespace signorini

@@ -1,0 +1,43 @@
+// The mesh: a coarse simplex mesh built on one rank (a box cut into triangles or tetrahedra, or a Gmsh
+// file), partitioned with METIS, distributed, then refined uniformly in parallel so that the fine mesh is
+// never held by one rank.
+//
+// Boundary parts are the values of the DMLabel "Face Sets" on faces (height-1 points). Box meshes number
+// their sides like PETSc's box mesh: 2D 1 = bottom (y = lo), 2 = right, 3 = top, 4 = left; 3D 1 = bottom
+// (z = lo), 2 = top, 3 = front (y = lo), 4 = back, 5 = right (x = hi), 6 = left. Gmsh physical curves
+// (2D) or surfaces (3D) become "Face Sets" values, physical surfaces (2D) or volumes (3D) "Cell Sets".
+#pragma once
+
+#include "signorini/common.h"
+
+#include <petscdmplex.h>
+
+namespace signorini {
+
+enum class Diagonal { Slash, Backslash, Crossed };
+
+struct MeshOptions {
+  std::string file;                 // Gmsh .msh file; empty: built-in box
+  PetscInt    dim        = 2;       // box dimension
+  PetscInt    faces[3]   = {8, 8, 8};
+  PetscReal   lower[3]   = {0, 0, 0};
+  PetscReal   upper[3]   = {1, 1, 1};
+  Diagonal    diagonal   = Diagonal::Slash;
+  PetscInt    refine     = 0;       // uniform parallel refinements after distribution
+  std::string partitioner = "metis"; // "metis" or any PetscPartitioner type (ptscotch, simple, ...)
+};
+
+// What the report needs to know about how the mesh was made.
+struct MeshInfo {
+  PetscInt              coarseCells = 0;
+  PetscInt              cells       = 0; // global, fine mesh
+  PetscInt              edgeCut     = -1; // METIS edge cut of the coarse partition (-1: not METIS)
+  std::vector<PetscInt> cellsPerRank;    // fine cells owned by each rank
+  std::string           description;     // e.g. "box 64x64 backslash" or the file name
+};
+
+PetscErrorCode MeshOptionsFromCommandLine(MPI_Comm comm, MeshOptions &opts);
+// Collective: builds, partitions, distributes and refines; pushes the Mesh, Distribute and Refine stages.
+PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &opts, DM *dm, MeshInfo &info);
+
+} // namespace signorini

@@ -1,0 +1,28 @@
+// The data of a scene: which boundary parts carry which condition, and the functions f, g, u_D, psi,
+// kappa and (optionally) the exact solution with its gradient, all read from the options database.
+#pragma once
+
+#include "signorini/expression.h"
+
+#include <memory>
+
+namespace signorini {
+
+struct Problem {
+  std::string           scene = "custom";
+  std::vector<PetscInt> dirichlet, neumann, contact; // "Face Sets" values of Gamma_D, Gamma_N, Gamma_C
+  std::unique_ptr<Expression> f, g, uD, psi, kappa; // kappa may use the variable cell_set ("Cell Sets" value, -1 if none)
+  std::unique_ptr<Expression> exact, exactGrad;     // null when the scene has no exact solution
+  std::string                 exactGradText;
+  bool HasContact() const { return !contact.empty(); }
+  bool HasNeumann() const { return !neumann.empty() && !g->IsZero(); }
+  bool HasExact() const { return exact != nullptr; }
+};
+
+// Reads the options and parses the scalar expressions.
+PetscErrorCode ProblemFromCommandLine(MPI_Comm comm, Problem &p);
+// Once the mesh dimension is known: parses the exact gradient (dim components) and checks that the
+// boundary parts determine u.
+PetscErrorCode ProblemSetUp(MPI_Comm comm, PetscInt dim, Problem &p);
+
+} // namespace signorini

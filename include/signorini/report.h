@@ -1,0 +1,32 @@
+// The summary of a run: what was solved, how the solve went, the checks and the errors, and where the
+// time went. Printed on rank 0 and, with -summary FILE.json, written as JSON (to a temporary name first,
+// then renamed, so a failed run never leaves a half-written file).
+#pragma once
+
+#include "signorini/contact.h"
+#include "signorini/error.h"
+#include "signorini/mesh.h"
+#include "signorini/stages.h"
+
+namespace signorini {
+
+struct Report {
+  std::string scene, element, mesh, loadRule;
+  PetscInt    dim = 0, refine = 0, coarseCells = 0, cells = 0, dofs = 0, dirichletDofs = 0, contactDofs = 0, ranks = 1, edgeCut = -1;
+  std::vector<PetscInt> cellsPerRank;
+  SolveResult solve;
+  bool        hasExact = false;
+  ErrorNorms  error;
+  PetscLogDouble stageSeconds[(int)Stage::Count] = {0}; // max over ranks
+  PetscLogDouble totalSeconds = 0;
+};
+
+PetscErrorCode ReportOptionsFromCommandLine(MPI_Comm comm, std::string &summaryFile);
+// Fills the stage times (max over ranks) and the total since `start`.
+PetscErrorCode ReportGatherTimes(MPI_Comm comm, PetscLogDouble start, Report &r);
+PetscErrorCode ReportPrint(MPI_Comm comm, const Report &r);
+PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string &file);
+// Writes text on rank 0 to `file` through a temporary name and a rename; collective, fails on all ranks.
+PetscErrorCode WriteFileAtomically(MPI_Comm comm, const std::string &file, const std::string &text);
+
+} // namespace signorini

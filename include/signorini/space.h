@@ -1,0 +1,83 @@
+// The discrete space: conforming P1 (one DOF per vertex) or Crouzeix-Raviart (one DOF per face, i.e. per
+// height-1 point), laid out by a PetscSection on a clone of the mesh DM, with the DOFs on Gamma_D and on
+// Gamma_C classified.
+//
+// Both elements are described through barycentric coordinates lambda_0..lambda_d of a cell, so one code
+// path serves triangles and tetrahedra:
+//   P1: phi_i = lambda_i                  (DOF i = vertex i of the cell)
+//   CR: phi_i = 1 - d * lambda_{opp(i)}   (DOF i = face i of the cone, opp(i) = the vertex not on it)
+// i.e. phi_i = a + b * lambda_{k(i)} with (a, b) = (0, 1) or (1, -d).
+#pragma once
+
+#include "signorini/problem.h"
+
+#include <petscdmplex.h>
+
+namespace signorini {
+
+enum class Element { P1, CR };
+const char *ElementName(Element e);
+
+// Affine geometry of one simplex.
+struct CellGeometry {
+  PetscReal volume;
+  PetscReal gradLambda[4][3]; // gradients of the barycentric coordinates
+  PetscReal centroid[3];
+};
+// Returns false for a degenerate cell.
+bool ComputeCellGeometry(PetscInt dim, const PetscReal *X, CellGeometry &g);
+
+// A face on a named boundary part, seen from its only cell.
+struct BoundaryFace {
+  PetscInt cell;     // local cell index (c - cStart)
+  PetscInt opposite; // index (0..dim) of the cell vertex not on the face
+  PetscInt part;     // "Face Sets" value
+  PetscInt dof;      // CR: local DOF of the face; P1: -1
+};
+
+enum DofKind : char { kFree = 0, kDirichlet = 1, kContact = 2 };
+
+struct Space {
+  DM       dm = nullptr; // mesh clone carrying the local section of this space
+  Element  element = Element::CR;
+  PetscInt dim = 2, cStart = 0, cEnd = 0;
+  PetscInt numLocal = 0, numOwned = 0, numGlobal = 0, numContactGlobal = 0, numDirichletGlobal = 0;
+  std::vector<PetscInt>     cellDof;   // (dim+1) local DOF indices per cell
+  std::vector<PetscInt>     cellOpp;   // (dim+1) per cell: vertex index opposite cone face i
+  std::vector<PetscReal>    cellX;     // (dim+1)*dim vertex coordinates per cell
+  std::vector<PetscInt>     cellSet;   // "Cell Sets" value per cell, -1 if none
+  std::vector<PetscReal>    dofPoint;  // dim coordinates per local DOF: vertex or face centroid
+  std::vector<char>         kindLocal; // DofKind per local DOF (consistent across ranks)
+  std::vector<PetscInt>     dirichletOwned, contactOwned; // indices into the owned part of a global Vec
+  std::vector<BoundaryFace> boundary;  // faces of all named parts on this rank
+
+  PetscInt        NumCells() const { return cEnd - cStart; }
+  PetscInt        Nb() const { return dim + 1; }
+  const PetscInt *Dofs(PetscInt c) const { return &cellDof[c * (dim + 1)]; }
+  const PetscReal *X(PetscInt c) const { return &cellX[c * (dim + 1) * dim]; }
+  // Index k(i) of the barycentric coordinate basis function i depends on.
+  PetscInt  K(PetscInt c, PetscInt i) const { return element == Element::P1 ? i : cellOpp[c * (dim + 1) + i]; }
+  PetscReal BasisValue(PetscInt c, PetscInt i, const PetscReal *lambda) const
+  {
+    return element == Element::P1 ? lambda[i] : 1.0 - dim * lambda[K(c, i)];
+  }
+  void BasisGrad(PetscInt c, PetscInt i, const CellGeometry &g, PetscReal *grad) const
+  {
+    const PetscReal b = element == Element::P1 ? 1.0 : -(PetscReal)dim;
+    for (PetscInt d = 0; d < dim; ++d) grad[d] = b * g.gradLambda[K(c, i)][d];
+  }
+  // Physical point of barycentric coordinates lambda in cell c.
+  void Point(PetscInt c, const PetscReal *lambda, PetscReal *x) const;
+  // Measure of boundary face bf (length in 2D, area in 3D) and its barycentric coordinates in the cell
+  // of a point with face-barycentric coordinates mu (dim entries).
+  PetscReal FaceMeasure(const BoundaryFace &bf) const;
+  void      FaceToCell(const BoundaryFace &bf, const PetscReal *mu, PetscReal *lambda) const;
+};
+
+PetscErrorCode ElementFromCommandLine(MPI_Comm comm, Element &e);
+// Builds the section, cell tables and DOF classification. Checks that every named part exists on the mesh
+// and consists of boundary faces, and that the cells are not degenerate.
+PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Space &space);
+PetscErrorCode SpaceDestroy(Space &space);
+
+} // namespace signorini

@@ -1,0 +1,204 @@
+#include "signorini/assembly.h"
+#include "signorini/stages.h"
+
+#include <algorithm>
+
+namespace signorini {
+
+PetscErrorCode AssemblyOptionsFromCommandLine(MPI_Comm comm, AssemblyOptions &o)
+{
+  const char *rules[] = {"accurate", "centroid"};
+  PetscInt    rule    = o.centroid ? 1 : 0;
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(comm, "", "Assembly", "signorini");
+  PetscCall(PetscOptionsEList("-load_quadrature", "Load integral rule: accurate (degree -load_quadrature_degree) or centroid (one point)", "", rules, 2, rules[rule], &rule, NULL));
+  PetscCall(PetscOptionsInt("-load_quadrature_degree", "Polynomial degree integrated exactly by the accurate load rule", "", o.loadDegree, &o.loadDegree, NULL));
+  PetscOptionsEnd();
+  o.centroid = rule == 1;
+  if (o.loadDegree < 1) SIGNORINI_INPUT_ERROR(comm, "option -load_quadrature_degree: must be >= 1, got %" PetscInt_FMT, o.loadDegree);
+  PetscFunctionReturn(0);
+}
+
+void ElementStiffness(const Space &space, PetscInt c, PetscReal kappa, const CellGeometry &g, PetscReal *Ke)
+{
+  const PetscInt nb = space.Nb();
+  PetscReal      grad[4][3];
+  for (PetscInt i = 0; i < nb; ++i) space.BasisGrad(c, i, g, grad[i]);
+  for (PetscInt i = 0; i < nb; ++i)
+    for (PetscInt j = 0; j < nb; ++j) {
+      PetscReal dot = 0;
+      for (PetscInt d = 0; d < space.dim; ++d) dot += grad[i][d] * grad[j][d];
+      Ke[i * nb + j] = kappa * g.volume * dot;
+    }
+}
+
+// kappa is taken constant on each cell (its centroid value), so the stiffness integral is exact for
+// coefficients that are piecewise constant on the mesh, including jumps between cell sets.
+static PetscErrorCode CellCoefficients(const Space &space, const Problem &problem, System &sys)
+{
+  std::string error;
+  PetscFunctionBeginUser;
+  sys.kappa.resize(space.NumCells());
+  for (PetscInt c = 0; c < space.NumCells(); ++c) {
+    CellGeometry g;
+    ComputeCellGeometry(space.dim, space.X(c), g);
+    problem.kappa->SetCellSet(space.cellSet[c]);
+    const PetscReal k = problem.kappa->Scalar(g.centroid, space.dim, error);
+    if (!(k > 0) && error.empty()) error = Format("option -kappa: '%s' is %g <= 0 at (%g, %g, %g); kappa must be positive", problem.kappa->Text().c_str(), (double)k, (double)g.centroid[0], (double)g.centroid[1], space.dim == 3 ? (double)g.centroid[2] : 0.0);
+    sys.kappa[c] = k;
+  }
+  PetscCall(CheckAll(PetscObjectComm((PetscObject)space.dm), error.empty(), error));
+  PetscFunctionReturn(0);
+}
+
+// Cell loop: stiffness into A, f-load into the local load vector.
+static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, System &sys, PetscScalar *load, std::string &error)
+{
+  const PetscInt nb = space.Nb();
+  PetscReal      Ke[16], be[4], lambda[4], x[3];
+  PetscFunctionBeginUser;
+  const bool zeroLoad = problem.f->IsZero();
+  for (PetscInt c = 0; c < space.NumCells(); ++c) {
+    CellGeometry g;
+    ComputeCellGeometry(space.dim, space.X(c), g);
+    ElementStiffness(space, c, sys.kappa[c], g, Ke);
+    PetscCall(MatSetValuesLocal(sys.A, nb, space.Dofs(c), nb, space.Dofs(c), Ke, ADD_VALUES));
+    if (zeroLoad) continue;
+    std::fill(be, be + nb, 0.0);
+    for (PetscInt q = 0; q < sys.cellRule.Size(); ++q) {
+      std::copy(sys.cellRule.Point(q), sys.cellRule.Point(q) + nb, lambda);
+      space.Point(c, lambda, x);
+      const PetscReal fq = problem.f->Scalar(x, space.dim, error) * sys.cellRule.weights[q] * g.volume;
+      for (PetscInt i = 0; i < nb; ++i) be[i] += fq * space.BasisValue(c, i, lambda);
+    }
+    for (PetscInt i = 0; i < nb; ++i) load[space.Dofs(c)[i]] += be[i];
+  }
+  PetscFunctionReturn(0);
+}
+
+// Neumann term: integral of g * phi_i over the faces of Gamma_N, with the face rule mapped into the cell.
+static void AssembleNeumann(const Space &space, const Problem &problem, const System &sys, PetscScalar *load, std::string &error)
+{
+  PetscReal lambda[4], x[3];
+  for (const BoundaryFace &bf : space.boundary) {
+    if (std::find(problem.neumann.begin(), problem.neumann.end(), bf.part) == problem.neumann.end()) continue;
+    const PetscReal area = space.FaceMeasure(bf);
+    for (PetscInt q = 0; q < sys.faceRule.Size(); ++q) {
+      space.FaceToCell(bf, sys.faceRule.Point(q), lambda);
+      space.Point(bf.cell, lambda, x);
+      const PetscReal gq = problem.g->Scalar(x, space.dim, error) * sys.faceRule.weights[q] * area;
+      for (PetscInt i = 0; i < space.Nb(); ++i) load[space.Dofs(bf.cell)[i]] += gq * space.BasisValue(bf.cell, i, lambda);
+    }
+  }
+}
+
+// Dirichlet values: u_D at vertices (P1) or its mean over each face (CR, the canonical CR interpolant).
+static void DirichletValues(const Space &space, const Problem &problem, const System &sys, PetscScalar *u, std::string &error)
+{
+  if (space.element == Element::P1) {
+    for (PetscInt i = 0; i < space.numLocal; ++i)
+      if (space.kindLocal[i] == kDirichlet) u[i] = problem.uD->Scalar(&space.dofPoint[i * space.dim], space.dim, error);
+    return;
+  }
+  PetscReal lambda[4], x[3];
+  for (const BoundaryFace &bf : space.boundary) {
+    if (space.kindLocal[bf.dof] != kDirichlet) continue;
+    PetscReal mean = 0;
+    for (PetscInt q = 0; q < sys.faceRule.Size(); ++q) {
+      space.FaceToCell(bf, sys.faceRule.Point(q), lambda);
+      space.Point(bf.cell, lambda, x);
+      mean += sys.faceRule.weights[q] * problem.uD->Scalar(x, space.dim, error);
+    }
+    u[bf.dof] = mean;
+  }
+}
+
+PetscErrorCode AssembleSystem(const Space &space, const Problem &problem, const AssemblyOptions &opts, System &sys)
+{
+  MPI_Comm    comm = PetscObjectComm((PetscObject)space.dm);
+  Vec         loc;
+  PetscScalar *a;
+  std::string error;
+  PetscFunctionBeginUser;
+  PetscCall(StagePush(Stage::Setup));
+  PetscCall(DMCreateMatrix(space.dm, &sys.A));
+  PetscCall(DMCreateGlobalVector(space.dm, &sys.b));
+  PetscCall(PetscObjectSetName((PetscObject)sys.b, "b"));
+  PetscCall(VecDuplicate(sys.b, &sys.load));
+  PetscCall(VecDuplicate(sys.b, &sys.uD));
+  PetscCall(StagePop(Stage::Setup));
+
+  PetscCall(StagePush(Stage::Assemble));
+  sys.cellRule = SimplexQuadrature(space.dim, opts.centroid ? 1 : opts.loadDegree);
+  sys.faceRule = SimplexQuadrature(space.dim - 1, opts.centroid ? 1 : opts.loadDegree);
+  PetscCall(CellCoefficients(space, problem, sys));
+  PetscCall(DMGetLocalVector(space.dm, &loc));
+  PetscCall(VecSet(loc, 0));
+  PetscCall(VecGetArray(loc, &a));
+  PetscCall(AssembleCells(space, problem, sys, a, error));
+  if (problem.HasNeumann()) AssembleNeumann(space, problem, sys, a, error);
+  PetscCall(VecRestoreArray(loc, &a));
+  PetscCall(MatAssemblyBegin(sys.A, MAT_FINAL_ASSEMBLY));
+  PetscCall(VecSet(sys.load, 0));
+  PetscCall(DMLocalToGlobal(space.dm, loc, ADD_VALUES, sys.load));
+  PetscCall(MatAssemblyEnd(sys.A, MAT_FINAL_ASSEMBLY));
+
+  // Dirichlet values: every rank evaluates u_D at its own copies of shared DOFs, so the values agree.
+  PetscCall(VecSet(loc, 0));
+  PetscCall(VecGetArray(loc, &a));
+  DirichletValues(space, problem, sys, a, error);
+  PetscCall(VecRestoreArray(loc, &a));
+  PetscCall(DMLocalToGlobal(space.dm, loc, INSERT_VALUES, sys.uD));
+  PetscCall(DMRestoreLocalVector(space.dm, &loc));
+  PetscCall(CheckAll(comm, error.empty(), error));
+
+  // Symmetric elimination keeps A symmetric positive definite for CG: b_i -= A_ij uD_j on free rows.
+  PetscInt rstart;
+  PetscCall(VecGetOwnershipRange(sys.b, &rstart, NULL));
+  std::vector<PetscInt> rows(space.dirichletOwned);
+  for (PetscInt &r : rows) r += rstart;
+  PetscCall(VecCopy(sys.load, sys.b));
+  PetscCall(MatZeroRowsColumns(sys.A, (PetscInt)rows.size(), rows.data(), 1.0, sys.uD, sys.b));
+  PetscCall(StagePop(Stage::Assemble));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode DiscreteEnergy(const Space &space, const System &sys, Vec u, PetscReal *J)
+{
+  Vec                loc;
+  const PetscScalar *a;
+  PetscReal          local = 0, Ke[16];
+  PetscScalar        chi;
+  PetscFunctionBeginUser;
+  PetscCall(DMGetLocalVector(space.dm, &loc));
+  PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, loc));
+  PetscCall(VecGetArrayRead(loc, &a));
+  const PetscInt nb = space.Nb();
+  for (PetscInt c = 0; c < space.NumCells(); ++c) {
+    CellGeometry g;
+    ComputeCellGeometry(space.dim, space.X(c), g);
+    ElementStiffness(space, c, sys.kappa[c], g, Ke);
+    const PetscInt *dofs = space.Dofs(c);
+    for (PetscInt i = 0; i < nb; ++i)
+      for (PetscInt j = 0; j < nb; ++j) local += 0.5 * PetscRealPart(a[dofs[i]]) * Ke[i * nb + j] * PetscRealPart(a[dofs[j]]);
+  }
+  PetscCall(VecRestoreArrayRead(loc, &a));
+  PetscCall(DMRestoreLocalVector(space.dm, &loc));
+  PetscReal half;
+  PetscCallMPI(MPI_Allreduce(&local, &half, 1, MPIU_REAL, MPI_SUM, PetscObjectComm((PetscObject)space.dm)));
+  PetscCall(VecDot(sys.load, u, &chi));
+  *J = half - PetscRealPart(chi);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SystemDestroy(System &sys)
+{
+  PetscFunctionBeginUser;
+  PetscCall(MatDestroy(&sys.A));
+  PetscCall(VecDestroy(&sys.b));
+  PetscCall(VecDestroy(&sys.load));
+  PetscCall(VecDestroy(&sys.uD));
+  PetscFunctionReturn(0);
+}
+
+} // namespace signorini

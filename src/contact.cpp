@@ -1,0 +1,207 @@
+#include "signorini/contact.h"
+#include "signorini/stages.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace signorini {
+
+namespace {
+struct ResidualContext {
+  Mat A;
+  Vec b;
+};
+
+// F(u) = A u - b: the problem is linear, only the bounds make it a complementarity problem.
+PetscErrorCode Residual(SNES, Vec u, Vec F, void *ctx)
+{
+  auto *c = static_cast<ResidualContext *>(ctx);
+  PetscFunctionBeginUser;
+  PetscCall(MatMult(c->A, u, F));
+  PetscCall(VecAXPY(F, -1.0, c->b));
+  PetscFunctionReturn(0);
+}
+
+// A is assembled once; SNESVI extracts the inactive-set block from it in every Newton step.
+PetscErrorCode ConstantJacobian(SNES, Vec, Mat, Mat, void *) { return 0; }
+} // namespace
+
+// psi at contact DOFs, -infinity elsewhere; and the boundary measure each contact DOF carries.
+static PetscErrorCode ContactVectors(const Space &space, const Problem &problem, Vec lower, Vec measure)
+{
+  Vec          loc;
+  PetscScalar *a;
+  std::string  error;
+  PetscFunctionBeginUser;
+  PetscCall(DMGetLocalVector(space.dm, &loc));
+  PetscCall(VecGetArray(loc, &a));
+  for (PetscInt i = 0; i < space.numLocal; ++i) a[i] = space.kindLocal[i] == kContact ? problem.psi->Scalar(&space.dofPoint[i * space.dim], space.dim, error) : PETSC_NINFINITY;
+  PetscCall(VecRestoreArray(loc, &a));
+  PetscCall(DMLocalToGlobal(space.dm, loc, INSERT_VALUES, lower));
+  PetscCall(CheckAll(PetscObjectComm((PetscObject)space.dm), error.empty(), error));
+
+  PetscCall(VecSet(loc, 0));
+  PetscCall(VecGetArray(loc, &a));
+  for (const BoundaryFace &bf : space.boundary) {
+    if (std::find(problem.contact.begin(), problem.contact.end(), bf.part) == problem.contact.end()) continue;
+    const PetscReal area = space.FaceMeasure(bf);
+    if (space.element == Element::CR) a[bf.dof] += area;
+    else
+      for (PetscInt i = 0; i < space.Nb(); ++i)
+        if (i != bf.opposite) a[space.Dofs(bf.cell)[i]] += area / space.dim;
+  }
+  PetscCall(VecRestoreArray(loc, &a));
+  PetscCall(VecSet(measure, 0));
+  PetscCall(DMLocalToGlobal(space.dm, loc, ADD_VALUES, measure));
+  PetscCall(DMRestoreLocalVector(space.dm, &loc));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode ConfigureKSP(KSP ksp)
+{
+  PC pc;
+  PetscFunctionBeginUser;
+  PetscCall(KSPSetType(ksp, KSPCG));
+  PetscCall(KSPGetPC(ksp, &pc));
+  PetscCall(PCSetType(pc, PCHYPRE));
+  PetscCall(PCHYPRESetType(pc, "boomeramg"));
+  PetscCall(KSPSetTolerances(ksp, 1e-10, 1e-50, PETSC_DEFAULT, 1000));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode SolveLinear(const System &sys, Vec u, SolveResult &r)
+{
+  KSP                ksp;
+  KSPConvergedReason reason;
+  PetscFunctionBeginUser;
+  PetscCall(KSPCreate(PetscObjectComm((PetscObject)u), &ksp));
+  PetscCall(KSPSetOperators(ksp, sys.A, sys.A));
+  PetscCall(ConfigureKSP(ksp));
+  PetscCall(KSPSetFromOptions(ksp));
+  PetscCall(KSPSolve(ksp, sys.b, u));
+  PetscCall(KSPGetConvergedReason(ksp, &reason));
+  PetscCall(KSPGetIterationNumber(ksp, &r.kspIts));
+  r.reason = KSPConvergedReasons[reason];
+  PetscCall(KSPDestroy(&ksp));
+  if (reason < 0) SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)u), "solver: the linear solve did not converge (%s after %" PetscInt_FMT " iterations); try other -ksp_type/-pc_type options", r.reason.c_str(), r.kspIts);
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &r)
+{
+  SNES                snes;
+  KSP                 ksp;
+  Vec                 upper, F;
+  SNESConvergedReason reason;
+  ResidualContext     ctx{sys.A, sys.b};
+  PetscFunctionBeginUser;
+  PetscCall(VecDuplicate(u, &upper));
+  PetscCall(VecDuplicate(u, &F));
+  PetscCall(VecSet(upper, PETSC_INFINITY));
+  PetscCall(SNESCreate(PetscObjectComm((PetscObject)u), &snes));
+  PetscCall(SNESSetType(snes, SNESVINEWTONRSLS));
+  PetscCall(SNESSetFunction(snes, F, Residual, &ctx));
+  PetscCall(SNESSetJacobian(snes, sys.A, sys.A, ConstantJacobian, NULL));
+  PetscCall(SNESVISetVariableBounds(snes, lower, upper));
+  PetscCall(SNESSetTolerances(snes, PETSC_DEFAULT, 1e-9, 1e-14, 200, PETSC_DEFAULT));
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(ConfigureKSP(ksp));
+  PetscCall(SNESSetFromOptions(snes));
+  PetscCall(VecPointwiseMax(u, u, lower)); // start inside K_h
+  PetscCall(SNESSolve(snes, NULL, u));
+  PetscCall(SNESGetConvergedReason(snes, &reason));
+  PetscCall(SNESGetIterationNumber(snes, &r.newtonIts));
+  PetscCall(SNESGetLinearSolveIterations(snes, &r.kspIts));
+  r.reason = SNESConvergedReasons[reason];
+  PetscCall(SNESDestroy(&snes));
+  PetscCall(VecDestroy(&upper));
+  PetscCall(VecDestroy(&F));
+  if (reason <= 0) SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)u), "solver: the contact solve (SNESVI) did not converge (%s after %" PetscInt_FMT " Newton iterations); see -snes_monitor -snes_vi_monitor -ksp_converged_reason", r.reason.c_str(), r.newtonIts);
+  PetscFunctionReturn(0);
+}
+
+// Discrete KKT conditions on Gamma_C and stationarity on the free DOFs.
+static PetscErrorCode MeasureKKT(const Space &space, const System &sys, Vec u, Vec lower, Vec measure, SolveResult &r)
+{
+  MPI_Comm           comm = PetscObjectComm((PetscObject)u);
+  Vec                res;
+  const PetscScalar *ua, *ra, *la, *ma, *fa;
+  PetscFunctionBeginUser;
+  PetscCall(VecDuplicate(u, &res));
+  PetscCall(MatMult(sys.A, u, res));
+  PetscCall(VecAXPY(res, -1.0, sys.b));
+  PetscCall(VecGetArrayRead(u, &ua));
+  PetscCall(VecGetArrayRead(res, &ra));
+  PetscCall(VecGetArrayRead(sys.load, &fa));
+  PetscReal minGap = PETSC_MAX_REAL, minP = PETSC_MAX_REAL, maxComp = 0, maxP = 0, maxGap = 0, maxU = 0, maxFree = 0, maxLoad = 0;
+  std::vector<char> isContact(space.numOwned, 0);
+  for (PetscInt i : space.contactOwned) isContact[i] = 1;
+  std::vector<char> isDirichlet(space.numOwned, 0);
+  for (PetscInt i : space.dirichletOwned) isDirichlet[i] = 1;
+  for (PetscInt i = 0; i < space.numOwned; ++i) {
+    maxU    = std::max(maxU, std::fabs(PetscRealPart(ua[i])));
+    maxLoad = std::max(maxLoad, std::fabs(PetscRealPart(fa[i])));
+    if (!isContact[i] && !isDirichlet[i]) maxFree = std::max(maxFree, std::fabs(PetscRealPart(ra[i])));
+  }
+  std::vector<PetscReal> gaps;
+  if (lower) {
+    PetscCall(VecGetArrayRead(lower, &la));
+    PetscCall(VecGetArrayRead(measure, &ma));
+    for (PetscInt i : space.contactOwned) {
+      const PetscReal gap = PetscRealPart(ua[i] - la[i]), p = PetscRealPart(ra[i]) / PetscRealPart(ma[i]);
+      minGap  = std::min(minGap, gap);
+      maxGap  = std::max(maxGap, gap);
+      minP    = std::min(minP, p);
+      maxP    = std::max(maxP, p);
+      maxComp = std::max(maxComp, std::fabs(gap * p));
+      gaps.push_back(gap);
+    }
+    PetscCall(VecRestoreArrayRead(lower, &la));
+    PetscCall(VecRestoreArrayRead(measure, &ma));
+  }
+  PetscCall(VecRestoreArrayRead(u, &ua));
+  PetscCall(VecRestoreArrayRead(res, &ra));
+  PetscCall(VecRestoreArrayRead(sys.load, &fa));
+  PetscCall(VecDestroy(&res));
+  PetscReal mins[2] = {minGap, minP}, maxs[6] = {maxComp, maxP, maxGap, maxU, maxFree, maxLoad};
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, mins, 2, MPIU_REAL, MPI_MIN, comm));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, maxs, 6, MPIU_REAL, MPI_MAX, comm));
+  r.stationarity = maxs[5] > 0 ? maxs[4] / maxs[5] : maxs[4];
+  if (!lower) PetscFunctionReturn(0);
+  r.primal          = mins[0];
+  r.dual            = mins[1];
+  r.complementarity = maxs[0];
+  r.pressureMax     = maxs[1];
+  r.gapMax          = maxs[2];
+  // Active: u = psi up to round-off relative to the size of u (RSLS sets active DOFs exactly to psi).
+  const PetscReal tol = 1e-12 * std::max((PetscReal)1.0, maxs[3]);
+  PetscInt        active = 0;
+  for (PetscReal g : gaps) active += g <= tol;
+  PetscCallMPI(MPI_Allreduce(&active, &r.active, 1, MPIU_INT, MPI_SUM, comm));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Solve(const Space &space, const Problem &problem, const System &sys, Vec u, SolveResult &r)
+{
+  Vec lower = nullptr, measure = nullptr;
+  PetscFunctionBeginUser;
+  PetscCall(StagePush(Stage::Solve));
+  PetscCall(VecCopy(sys.uD, u));
+  r.vi = problem.HasContact();
+  if (r.vi) {
+    PetscCall(VecDuplicate(u, &lower));
+    PetscCall(VecDuplicate(u, &measure));
+    PetscCall(ContactVectors(space, problem, lower, measure));
+    PetscCall(SolveVI(sys, lower, u, r));
+  } else {
+    PetscCall(SolveLinear(sys, u, r));
+  }
+  PetscCall(StagePop(Stage::Solve));
+  PetscCall(MeasureKKT(space, sys, u, lower, measure, r));
+  PetscCall(DiscreteEnergy(space, sys, u, &r.energy));
+  PetscCall(VecDestroy(&lower));
+  PetscCall(VecDestroy(&measure));
+  PetscFunctionReturn(0);
+}
+
+} // namespace signorini

@@ -1,0 +1,69 @@
+#include "signorini/expression.h"
+
+#include <muParser.h>
+
+#include <cmath>
+
+namespace signorini {
+
+Expression::~Expression() = default;
+
+PetscErrorCode Expression::Create(MPI_Comm comm, const std::string &option, const std::string &text, int components, std::unique_ptr<Expression> &expr)
+{
+  PetscFunctionBeginUser;
+  expr.reset(new Expression());
+  Expression &e = *expr;
+  e.option_     = option;
+  e.text_       = text;
+  e.components_ = components;
+  e.parser_     = std::make_unique<mu::Parser>();
+  std::string message;
+  try {
+    e.parser_->DefineVar("x", &e.xyz_[0]);
+    e.parser_->DefineVar("y", &e.xyz_[1]);
+    e.parser_->DefineVar("z", &e.xyz_[2]);
+    e.parser_->DefineVar("cell_set", &e.cellSet_);
+    e.parser_->DefineConst("pi", M_PI);
+    e.parser_->DefineConst("Pi", M_PI);
+    e.parser_->SetExpr(text);
+    int n = 0;
+    e.parser_->Eval(n); // muparser parses lazily: evaluate once so syntax errors surface here
+    if (n != components) message = Format("option %s: '%s' has %d component(s), expected %d", option.c_str(), text.c_str(), n, components);
+  } catch (mu::Parser::exception_type &err) {
+    message = Format("option %s: cannot parse '%s': %s", option.c_str(), text.c_str(), err.GetMsg().c_str());
+  }
+  // Every rank parses the same text, so every rank reaches the same verdict.
+  if (!message.empty()) SIGNORINI_INPUT_ERROR(comm, "%s", message.c_str());
+  e.zero_ = (components == 1 && text.find_first_not_of(" 0.") == std::string::npos && text.find('0') != std::string::npos);
+  PetscFunctionReturn(0);
+}
+
+bool Expression::Eval(const PetscReal x[], PetscInt dim, PetscReal values[], std::string &error) const
+{
+  for (int d = 0; d < 3; ++d) xyz_[d] = d < dim ? x[d] : 0.0;
+  int           n = 0;
+  const double *v = nullptr;
+  try {
+    v = parser_->Eval(n);
+  } catch (mu::Parser::exception_type &err) {
+    if (error.empty()) error = Format("option %s: evaluating '%s' failed: %s", option_.c_str(), text_.c_str(), err.GetMsg().c_str());
+    return false;
+  }
+  for (int c = 0; c < components_; ++c) {
+    values[c] = v[c];
+    if (!std::isfinite(v[c])) {
+      if (error.empty()) error = Format("option %s: '%s' is %g at (%g, %g, %g)", option_.c_str(), text_.c_str(), v[c], xyz_[0], xyz_[1], xyz_[2]);
+      return false;
+    }
+  }
+  return true;
+}
+
+PetscReal Expression::Scalar(const PetscReal x[], PetscInt dim, std::string &error) const
+{
+  PetscReal v = 0;
+  Eval(x, dim, &v, error);
+  return v;
+}
+
+} // namespace signorini

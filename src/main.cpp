@@ -1,0 +1,130 @@
+static const char help[] =
+  "signorini: the Signorini (unilateral contact) problem -div(kappa grad u) = f with u >= psi on Gamma_C,\n"
+  "discretized with Crouzeix-Raviart (-space cr) or conforming P1 (-space p1) elements on a DMPlex mesh,\n"
+  "solved with SNESVI reduced-space Newton and CG + hypre BoomerAMG.\n\n"
+  "Sample runs:\n"
+  "  signorini -options_file petsc-options/paper-5.1 -space cr -box_faces 64\n"
+  "  mpirun -n 2 signorini -options_file petsc-options/manufactured-2d -space p1 -refine 2 -summary run.json\n"
+  "  signorini -options_file petsc-options/manufactured-3d -snes_monitor -ksp_converged_reason -log_view\n\n";
+
+#include "signorini/assembly.h"
+#include "signorini/contact.h"
+#include "signorini/error.h"
+#include "signorini/mesh.h"
+#include "signorini/output.h"
+#include "signorini/problem.h"
+#include "signorini/report.h"
+#include "signorini/space.h"
+#include "signorini/stages.h"
+
+#include <cstdio>
+
+using namespace signorini;
+
+// Options of every component, read before any work so that -help lists them all.
+struct Settings {
+  MeshOptions     mesh;
+  Element         element = Element::CR;
+  Problem         problem;
+  AssemblyOptions assembly;
+  PetscInt        errorDegree = 6;
+  std::string     summaryFile;
+  OutputOptions   output;
+};
+
+static PetscErrorCode ReadSettings(MPI_Comm comm, Settings &s)
+{
+  PetscFunctionBeginUser;
+  PetscCall(MeshOptionsFromCommandLine(comm, s.mesh));
+  PetscCall(ElementFromCommandLine(comm, s.element));
+  PetscCall(ProblemFromCommandLine(comm, s.problem));
+  PetscCall(AssemblyOptionsFromCommandLine(comm, s.assembly));
+  PetscCall(ErrorOptionsFromCommandLine(comm, s.errorDegree));
+  PetscCall(ReportOptionsFromCommandLine(comm, s.summaryFile));
+  PetscCall(OutputOptionsFromCommandLine(comm, s.output));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode Run(MPI_Comm comm)
+{
+  Settings       s;
+  Report         report;
+  DM             mesh;
+  MeshInfo       meshInfo;
+  Space          space;
+  System         sys;
+  Vec            u;
+  PetscLogDouble start;
+  PetscBool      help = PETSC_FALSE;
+  PetscFunctionBeginUser;
+  PetscCall(PetscTime(&start));
+  PetscCall(StagesRegister());
+  PetscCall(ReadSettings(comm, s));
+  PetscCall(PetscOptionsHasHelp(NULL, &help));
+  if (help) PetscFunctionReturn(0);
+
+  // mesh -> space -> assembly -> solve -> errors -> report -> output
+  PetscCall(MeshCreate(comm, s.mesh, &mesh, meshInfo));
+  PetscInt dim;
+  PetscCall(DMGetDimension(mesh, &dim));
+  PetscCall(ProblemSetUp(comm, dim, s.problem));
+  PetscCall(StagePush(Stage::Setup));
+  PetscCall(SpaceCreate(mesh, s.element, s.problem, space));
+  PetscCall(StagePop(Stage::Setup));
+  PetscCall(AssembleSystem(space, s.problem, s.assembly, sys));
+  PetscCall(DMCreateGlobalVector(space.dm, &u));
+  PetscCall(PetscObjectSetName((PetscObject)u, "u"));
+  PetscCall(Solve(space, s.problem, sys, u, report.solve));
+  if (s.problem.HasExact()) PetscCall(ErrorAgainstExact(space, s.problem, u, s.errorDegree, report.error));
+
+  report.scene         = s.problem.scene;
+  report.element       = ElementName(s.element);
+  report.mesh          = meshInfo.description;
+  report.loadRule      = s.assembly.centroid ? "centroid" : Format("accurate (degree %d)", (int)s.assembly.loadDegree);
+  report.dim           = dim;
+  report.refine        = s.mesh.refine;
+  report.coarseCells   = meshInfo.coarseCells;
+  report.cells         = meshInfo.cells;
+  report.cellsPerRank  = meshInfo.cellsPerRank;
+  report.edgeCut       = meshInfo.edgeCut;
+  report.dofs          = space.numGlobal;
+  report.dirichletDofs = space.numDirichletGlobal;
+  report.contactDofs   = space.numContactGlobal;
+  report.ranks         = (PetscInt)meshInfo.cellsPerRank.size();
+  report.hasExact      = s.problem.HasExact();
+  if (!s.output.file.empty()) PetscCall(WriteSolution(space, u, s.output));
+  PetscCall(ReportGatherTimes(comm, start, report));
+  PetscCall(ReportPrint(comm, report));
+  if (!s.summaryFile.empty()) PetscCall(ReportWriteJSON(comm, report, s.summaryFile));
+
+  PetscCall(VecDestroy(&u));
+  PetscCall(SystemDestroy(sys));
+  PetscCall(SpaceDestroy(space));
+  PetscCall(DMDestroy(&mesh));
+  PetscFunctionReturn(0);
+}
+
+int main(int argc, char **argv)
+{
+  PetscErrorCode ierr = PetscInitialize(&argc, &argv, NULL, help);
+  if (ierr) return ierr;
+  // Input errors get one line; -error_traceback restores PETSc's full traceback for debugging.
+  PetscBool traceback = PETSC_FALSE;
+  PetscOptionsGetBool(NULL, NULL, "-error_traceback", &traceback, NULL);
+  if (!traceback) PetscPushErrorHandler(PetscReturnErrorHandler, NULL);
+  ierr = Run(PETSC_COMM_WORLD);
+  if (ierr) {
+    PetscMPIInt rank;
+    MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+    if (ierr == kInputError) {
+      // Raised on every rank at the same point: report once and shut down cleanly.
+      if (rank == 0) std::fprintf(stderr, "signorini: error: %s\n", LastPetscError(ierr).c_str());
+      PetscFinalize();
+      return 1;
+    }
+    // Possibly raised on this rank only: the others may be waiting in a collective, so abort them all.
+    std::fprintf(stderr, "signorini: error on rank %d (PETSc error %d): %s\n", rank, (int)ierr, LastPetscError(ierr).c_str());
+    MPI_Abort(PETSC_COMM_WORLD, 2);
+  }
+  return PetscFinalize();
+}

@@ -1,0 +1,188 @@
+#include "signorini/output.h"
+#include "signorini/report.h"
+#include "signorini/stages.h"
+
+#include <petscviewerhdf5.h>
+
+#include <cstdio>
+#include <sstream>
+
+namespace signorini {
+
+PetscErrorCode OutputOptionsFromCommandLine(MPI_Comm comm, OutputOptions &o)
+{
+  char file[PETSC_MAX_PATH_LEN] = "";
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(comm, "", "Output", "signorini");
+  PetscCall(PetscOptionsString("-output", "Write mesh and solution to FILE.h5 (HDF5) and FILE.xmf (XDMF for ParaView)", "", file, file, sizeof file, NULL));
+  PetscOptionsEnd();
+  o.file = file;
+  if (!o.file.empty() && (o.file.size() < 4 || o.file.substr(o.file.size() - 3) != ".h5")) SIGNORINI_INPUT_ERROR(comm, "option -output: '%s' must end in .h5", o.file.c_str());
+  PetscFunctionReturn(0);
+}
+
+// A clone of the mesh with one DOF per point of depth `depth` (0: vertices) or height 0 (cells).
+static PetscErrorCode PointFieldDM(DM mesh, bool cells, DM *dm)
+{
+  PetscSection s;
+  PetscInt     pStart, pEnd, a, b;
+  PetscFunctionBeginUser;
+  PetscCall(DMClone(mesh, dm));
+  PetscCall(PetscSectionCreate(PetscObjectComm((PetscObject)mesh), &s));
+  PetscCall(PetscSectionSetNumFields(s, 1));
+  PetscCall(PetscSectionSetFieldName(s, 0, "value"));
+  PetscCall(DMPlexGetChart(*dm, &pStart, &pEnd));
+  PetscCall(PetscSectionSetChart(s, pStart, pEnd));
+  if (cells) PetscCall(DMPlexGetHeightStratum(*dm, 0, &a, &b));
+  else PetscCall(DMPlexGetDepthStratum(*dm, 0, &a, &b));
+  for (PetscInt p = a; p < b; ++p) {
+    PetscCall(PetscSectionSetDof(s, p, 1));
+    PetscCall(PetscSectionSetFieldDof(s, p, 0, 1));
+  }
+  PetscCall(PetscSectionSetUp(s));
+  PetscCall(DMSetLocalSection(*dm, s));
+  PetscCall(PetscSectionDestroy(&s));
+  PetscFunctionReturn(0);
+}
+
+// Cell means and vertex averages of the cellwise linear function u_h (for P1 the vertex average is u_h).
+static PetscErrorCode DerivedFields(const Space &space, Vec u, DM cellDM, DM vertDM, Vec cellMean, Vec vertexAvg)
+{
+  Vec                uloc, vsum, vcnt, vsumG, vcntG, cloc;
+  const PetscScalar *ua;
+  PetscScalar       *cm, *vs, *vc;
+  PetscInt           vStart, vEnd;
+  PetscFunctionBeginUser;
+  PetscCall(DMGetLocalVector(space.dm, &uloc));
+  PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, uloc));
+  PetscCall(DMGetLocalVector(vertDM, &vsum));
+  PetscCall(DMGetLocalVector(vertDM, &vcnt));
+  PetscCall(VecSet(vsum, 0));
+  PetscCall(VecSet(vcnt, 0));
+  PetscCall(VecGetArrayRead(uloc, &ua));
+  PetscCall(DMGetLocalVector(cellDM, &cloc));
+  PetscCall(VecGetArray(cloc, &cm));
+  PetscCall(VecGetArray(vsum, &vs));
+  PetscCall(VecGetArray(vcnt, &vc));
+  PetscCall(DMPlexGetDepthStratum(space.dm, 0, &vStart, &vEnd));
+  PetscSection vsec, csec;
+  PetscCall(DMGetLocalSection(vertDM, &vsec));
+  PetscCall(DMGetLocalSection(cellDM, &csec));
+  const PetscInt nb = space.Nb();
+  for (PetscInt c = 0; c < space.NumCells(); ++c) {
+    PetscReal centroid[4], mean = 0;
+    for (PetscInt k = 0; k < nb; ++k) centroid[k] = 1.0 / nb;
+    for (PetscInt i = 0; i < nb; ++i) mean += PetscRealPart(ua[space.Dofs(c)[i]]) * space.BasisValue(c, i, centroid);
+    PetscInt *closure = nullptr, n, k = 0, coff;
+    PetscCall(PetscSectionGetOffset(csec, space.cStart + c, &coff));
+    cm[coff] = mean;
+    PetscCall(DMPlexGetTransitiveClosure(space.dm, space.cStart + c, PETSC_TRUE, &n, &closure));
+    for (PetscInt j = 0; j < n; ++j) {
+      const PetscInt p = closure[2 * j];
+      if (p < vStart || p >= vEnd) continue;
+      PetscReal lambda[4] = {0, 0, 0, 0}, val = 0;
+      lambda[k++]         = 1;
+      for (PetscInt i = 0; i < nb; ++i) val += PetscRealPart(ua[space.Dofs(c)[i]]) * space.BasisValue(c, i, lambda);
+      PetscInt off;
+      PetscCall(PetscSectionGetOffset(vsec, p, &off));
+      vs[off] += val;
+      vc[off] += 1;
+    }
+    PetscCall(DMPlexRestoreTransitiveClosure(space.dm, space.cStart + c, PETSC_TRUE, &n, &closure));
+  }
+  PetscCall(VecRestoreArrayRead(uloc, &ua));
+  PetscCall(VecRestoreArray(cloc, &cm));
+  PetscCall(DMLocalToGlobal(cellDM, cloc, INSERT_VALUES, cellMean));
+  PetscCall(DMRestoreLocalVector(cellDM, &cloc));
+  PetscCall(VecRestoreArray(vsum, &vs));
+  PetscCall(VecRestoreArray(vcnt, &vc));
+  PetscCall(DMGetGlobalVector(vertDM, &vsumG));
+  PetscCall(DMGetGlobalVector(vertDM, &vcntG));
+  PetscCall(VecSet(vsumG, 0));
+  PetscCall(VecSet(vcntG, 0));
+  PetscCall(DMLocalToGlobal(vertDM, vsum, ADD_VALUES, vsumG));
+  PetscCall(DMLocalToGlobal(vertDM, vcnt, ADD_VALUES, vcntG));
+  PetscCall(VecPointwiseDivide(vertexAvg, vsumG, vcntG));
+  PetscCall(DMRestoreGlobalVector(vertDM, &vsumG));
+  PetscCall(DMRestoreGlobalVector(vertDM, &vcntG));
+  PetscCall(DMRestoreLocalVector(space.dm, &uloc));
+  PetscCall(DMRestoreLocalVector(vertDM, &vsum));
+  PetscCall(DMRestoreLocalVector(vertDM, &vcnt));
+  PetscFunctionReturn(0);
+}
+
+static std::string BaseName(const std::string &path)
+{
+  size_t slash = path.find_last_of('/');
+  return slash == std::string::npos ? path : path.substr(slash + 1);
+}
+
+static std::string Xdmf(const std::string &h5, PetscInt dim, PetscInt nv, PetscInt nc, const char *vertexName, const char *cellName)
+{
+  std::ostringstream x;
+  x << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"2.0\">\n <Domain>\n  <Grid Name=\"signorini\" GridType=\"Uniform\">\n";
+  x << "   <Topology TopologyType=\"" << (dim == 2 ? "Triangle" : "Tetrahedron") << "\" NumberOfElements=\"" << nc << "\">\n";
+  x << "    <DataItem Dimensions=\"" << nc << " " << dim + 1 << "\" NumberType=\"Int\" Format=\"HDF\">" << h5 << ":/viz/topology/cells</DataItem>\n   </Topology>\n";
+  x << "   <Geometry GeometryType=\"" << (dim == 2 ? "XY" : "XYZ") << "\">\n";
+  x << "    <DataItem Dimensions=\"" << nv << " " << dim << "\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">" << h5 << ":/geometry/vertices</DataItem>\n   </Geometry>\n";
+  x << "   <Attribute Name=\"u_h (vertex)\" AttributeType=\"Scalar\" Center=\"Node\">\n";
+  x << "    <DataItem Dimensions=\"" << nv << " 1\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">" << h5 << ":/vertex_fields/" << vertexName << "</DataItem>\n   </Attribute>\n";
+  x << "   <Attribute Name=\"u_h (cell mean)\" AttributeType=\"Scalar\" Center=\"Cell\">\n";
+  x << "    <DataItem Dimensions=\"" << nc << " 1\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">" << h5 << ":/cell_fields/" << cellName << "</DataItem>\n   </Attribute>\n";
+  x << "  </Grid>\n </Domain>\n</Xdmf>\n";
+  return x.str();
+}
+
+PetscErrorCode WriteSolution(const Space &space, Vec u, const OutputOptions &o)
+{
+  MPI_Comm    comm = PetscObjectComm((PetscObject)space.dm);
+  PetscMPIInt rank;
+  DM          cellDM, vertDM;
+  Vec         cellMean, vertexAvg;
+  PetscViewer viewer;
+  std::string problem;
+  PetscFunctionBeginUser;
+  PetscCall(StagePush(Stage::Output));
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  const std::string tmp = o.file + ".tmp";
+  if (rank == 0) {
+    FILE *fp = std::fopen(tmp.c_str(), "w");
+    if (!fp) problem = Format("option -output: '%s' cannot be written", o.file.c_str());
+    else std::fclose(fp);
+  }
+  PetscCall(CheckAll(comm, problem.empty(), problem));
+
+  PetscCall(PointFieldDM(space.dm, true, &cellDM));
+  PetscCall(PointFieldDM(space.dm, false, &vertDM));
+  PetscCall(DMCreateGlobalVector(cellDM, &cellMean));
+  PetscCall(DMCreateGlobalVector(vertDM, &vertexAvg));
+  PetscCall(PetscObjectSetName((PetscObject)cellMean, "u_cell"));
+  PetscCall(PetscObjectSetName((PetscObject)vertexAvg, "u_vertex"));
+  PetscCall(DerivedFields(space, u, cellDM, vertDM, cellMean, vertexAvg));
+
+  PetscCall(PetscViewerHDF5Open(comm, tmp.c_str(), FILE_MODE_WRITE, &viewer));
+  PetscCall(PetscViewerPushFormat(viewer, PETSC_VIEWER_HDF5_XDMF));
+  PetscCall(DMView(vertDM, viewer));
+  PetscCall(VecView(vertexAvg, viewer));
+  PetscCall(VecView(cellMean, viewer));
+  PetscCall(PetscViewerPopFormat(viewer));
+  PetscCall(VecView(u, viewer)); // the raw DOF vector (faces for CR, vertices for P1) under /fields
+  PetscCall(PetscViewerDestroy(&viewer));
+
+  PetscInt nv, nc;
+  PetscCall(VecGetSize(vertexAvg, &nv));
+  PetscCall(VecGetSize(cellMean, &nc));
+  if (rank == 0 && std::rename(tmp.c_str(), o.file.c_str()) != 0) problem = Format("option -output: renaming '%s' failed", tmp.c_str());
+  PetscCall(CheckAll(comm, problem.empty(), problem));
+  std::string xmf = o.file.substr(0, o.file.size() - 3) + ".xmf";
+  PetscCall(WriteFileAtomically(comm, xmf, Xdmf(BaseName(o.file), space.dim, nv, nc, "u_vertex_value", "u_cell_value")));
+
+  PetscCall(VecDestroy(&cellMean));
+  PetscCall(VecDestroy(&vertexAvg));
+  PetscCall(DMDestroy(&cellDM));
+  PetscCall(DMDestroy(&vertDM));
+  PetscCall(StagePop(Stage::Output));
+  PetscFunctionReturn(0);
+}
+
+} // namespace signorini

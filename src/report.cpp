@@ -1,0 +1,111 @@
+#include "signorini/report.h"
+
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+namespace signorini {
+
+PetscErrorCode ReportOptionsFromCommandLine(MPI_Comm comm, std::string &summaryFile)
+{
+  char file[PETSC_MAX_PATH_LEN] = "";
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(comm, "", "Summary", "signorini");
+  PetscCall(PetscOptionsString("-summary", "Write the run's figures as JSON to this file", "", file, file, sizeof file, NULL));
+  PetscOptionsEnd();
+  summaryFile = file;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ReportGatherTimes(MPI_Comm comm, PetscLogDouble start, Report &r)
+{
+  PetscLogDouble now;
+  PetscFunctionBeginUser;
+  PetscCall(PetscTime(&now));
+  PetscLogDouble t[(int)Stage::Count + 1];
+  for (int s = 0; s < (int)Stage::Count; ++s) t[s] = StageSeconds((Stage)s);
+  t[(int)Stage::Count] = now - start;
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, t, (int)Stage::Count + 1, MPI_DOUBLE, MPI_MAX, comm));
+  for (int s = 0; s < (int)Stage::Count; ++s) r.stageSeconds[s] = t[s];
+  r.totalSeconds = t[(int)Stage::Count];
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ReportPrint(MPI_Comm comm, const Report &r)
+{
+  std::ostringstream o;
+  PetscFunctionBeginUser;
+  o << Format("scene %s: element %s, %dD, mesh %s, refine %d: %d cells, %d DOFs (%d Dirichlet, %d contact), %d rank(s)\n", r.scene.c_str(), r.element.c_str(), (int)r.dim, r.mesh.c_str(), (int)r.refine, (int)r.cells, (int)r.dofs, (int)r.dirichletDofs, (int)r.contactDofs, (int)r.ranks);
+  if (r.solve.vi) {
+    o << Format("  solve: SNESVI %s, %d Newton / %d KSP iterations\n", r.solve.reason.c_str(), (int)r.solve.newtonIts, (int)r.solve.kspIts);
+    o << Format("  KKT on Gamma_C: min(u-psi) %.3e, min pressure %.3e, max |(u-psi) pressure| %.3e, active %d of %d\n", (double)r.solve.primal, (double)r.solve.dual, (double)r.solve.complementarity, (int)r.solve.active, (int)r.contactDofs);
+  } else {
+    o << Format("  solve: KSP %s, %d iterations (no contact part: linear solve)\n", r.solve.reason.c_str(), (int)r.solve.kspIts);
+  }
+  o << Format("  stationarity max|r| / max|load| on free DOFs %.3e, energy J(u_h) = %.12e\n", (double)r.solve.stationarity, (double)r.solve.energy);
+  if (r.hasExact) o << Format("  error vs exact: L2 %.6e, broken H1 seminorm %.6e, H1 %.6e\n", (double)r.error.l2, (double)r.error.h1semi, (double)r.error.h1);
+  o << "  time [s]:";
+  for (int s = 0; s < (int)Stage::Count; ++s) o << Format(" %s %.3f", StageName((Stage)s), r.stageSeconds[s]);
+  o << Format(", total %.3f\n", r.totalSeconds);
+  PetscCall(PetscPrintf(comm, "%s", o.str().c_str()));
+  PetscFunctionReturn(0);
+}
+
+static std::string Num(double v) { return std::isfinite(v) ? Format("%.17g", v) : "null"; }
+static std::string Str(const std::string &s)
+{
+  std::string out = "\"";
+  for (char c : s) {
+    if (c == '"' || c == '\\') out += '\\';
+    out += c;
+  }
+  return out + "\"";
+}
+
+PetscErrorCode WriteFileAtomically(MPI_Comm comm, const std::string &file, const std::string &text)
+{
+  PetscMPIInt rank;
+  std::string problem;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  if (rank == 0) {
+    const std::string tmp = file + ".tmp";
+    FILE             *fp  = std::fopen(tmp.c_str(), "w");
+    if (!fp) problem = Format("output file '%s': cannot be written", file.c_str());
+    else {
+      bool ok = std::fwrite(text.data(), 1, text.size(), fp) == text.size();
+      ok      = (std::fclose(fp) == 0) && ok;
+      if (!ok || std::rename(tmp.c_str(), file.c_str()) != 0) {
+        std::remove(tmp.c_str());
+        problem = Format("output file '%s': writing failed", file.c_str());
+      }
+    }
+  }
+  PetscCall(CheckAll(comm, problem.empty(), problem));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string &file)
+{
+  std::ostringstream o;
+  PetscFunctionBeginUser;
+  o << "{\n";
+  o << "  \"scene\": " << Str(r.scene) << ",\n  \"element\": " << Str(r.element) << ",\n  \"dim\": " << r.dim << ",\n";
+  o << "  \"mesh\": " << Str(r.mesh) << ",\n  \"refine\": " << r.refine << ",\n  \"coarse_cells\": " << r.coarseCells << ",\n  \"cells\": " << r.cells << ",\n";
+  o << "  \"dofs\": " << r.dofs << ",\n  \"dirichlet_dofs\": " << r.dirichletDofs << ",\n  \"contact_dofs\": " << r.contactDofs << ",\n";
+  o << "  \"ranks\": " << r.ranks << ",\n  \"edge_cut\": " << r.edgeCut << ",\n  \"cells_per_rank\": [";
+  for (size_t i = 0; i < r.cellsPerRank.size(); ++i) o << (i ? ", " : "") << r.cellsPerRank[i];
+  o << "],\n  \"load_quadrature\": " << Str(r.loadRule) << ",\n";
+  o << "  \"solver\": {\"type\": " << Str(r.solve.vi ? "snesvi" : "ksp") << ", \"converged_reason\": " << Str(r.solve.reason) << ", \"newton_iterations\": " << r.solve.newtonIts << ", \"ksp_iterations\": " << r.solve.kspIts << "},\n";
+  if (r.solve.vi)
+    o << "  \"kkt\": {\"min_gap\": " << Num(r.solve.primal) << ", \"min_pressure\": " << Num(r.solve.dual) << ", \"max_complementarity\": " << Num(r.solve.complementarity) << ", \"max_pressure\": " << Num(r.solve.pressureMax) << ", \"max_gap\": " << Num(r.solve.gapMax) << ", \"active\": " << r.solve.active << "},\n";
+  o << "  \"stationarity\": " << Num(r.solve.stationarity) << ",\n  \"energy\": " << Num(r.solve.energy) << ",\n";
+  if (r.hasExact) o << "  \"error\": {\"l2\": " << Num(r.error.l2) << ", \"h1_semi\": " << Num(r.error.h1semi) << ", \"h1\": " << Num(r.error.h1) << "},\n";
+  o << "  \"time\": {";
+  for (int s = 0; s < (int)Stage::Count; ++s) o << Str(StageName((Stage)s)) << ": " << Num(r.stageSeconds[s]) << ", ";
+  o << "\"total\": " << Num(r.totalSeconds) << "}\n}\n";
+  PetscCall(WriteFileAtomically(comm, file, o.str()));
+  PetscFunctionReturn(0);
+}
+
+} // namespace signorini

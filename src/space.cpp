@@ -1,0 +1,316 @@
+#include "signorini/space.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace signorini {
+
+const char *ElementName(Element e) { return e == Element::P1 ? "p1" : "cr"; }
+
+PetscErrorCode ElementFromCommandLine(MPI_Comm comm, Element &e)
+{
+  const char *names[] = {"p1", "cr"};
+  PetscInt    which   = (PetscInt)e;
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(comm, "", "Discrete space", "signorini");
+  PetscCall(PetscOptionsEList("-space", "Finite element: p1 (conforming, vertex DOFs) or cr (Crouzeix-Raviart, face DOFs)", "", names, 2, names[which], &which, NULL));
+  PetscOptionsEnd();
+  e = (Element)which;
+  PetscFunctionReturn(0);
+}
+
+bool ComputeCellGeometry(PetscInt dim, const PetscReal *X, CellGeometry &g)
+{
+  // J = [X_1 - X_0, ..., X_d - X_0]; grad lambda_k = row k-1 of J^{-1}, grad lambda_0 = -sum of the others.
+  PetscReal J[3][3], inv[3][3], det;
+  for (PetscInt r = 0; r < dim; ++r)
+    for (PetscInt k = 0; k < dim; ++k) J[r][k] = X[(k + 1) * dim + r] - X[r];
+  if (dim == 2) {
+    det       = J[0][0] * J[1][1] - J[0][1] * J[1][0];
+    inv[0][0] = J[1][1] / det, inv[0][1] = -J[0][1] / det;
+    inv[1][0] = -J[1][0] / det, inv[1][1] = J[0][0] / det;
+  } else {
+    det = J[0][0] * (J[1][1] * J[2][2] - J[1][2] * J[2][1]) - J[0][1] * (J[1][0] * J[2][2] - J[1][2] * J[2][0]) + J[0][2] * (J[1][0] * J[2][1] - J[1][1] * J[2][0]);
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) {
+        // cofactor of J[j][i], divided by det
+        int r0 = (j + 1) % 3, r1 = (j + 2) % 3, c0 = (i + 1) % 3, c1 = (i + 2) % 3;
+        inv[i][j] = (J[r0][c0] * J[r1][c1] - J[r0][c1] * J[r1][c0]) / det;
+      }
+  }
+  if (!(std::fabs(det) > 0) || !std::isfinite(det)) return false;
+  g.volume = std::fabs(det) / (dim == 2 ? 2.0 : 6.0);
+  for (PetscInt d = 0; d < dim; ++d) {
+    g.gradLambda[0][d] = 0;
+    g.centroid[d]      = 0;
+    for (PetscInt k = 0; k <= dim; ++k) g.centroid[d] += X[k * dim + d] / (dim + 1);
+  }
+  for (PetscInt k = 1; k <= dim; ++k)
+    for (PetscInt d = 0; d < dim; ++d) {
+      g.gradLambda[k][d] = inv[k - 1][d];
+      g.gradLambda[0][d] -= inv[k - 1][d];
+    }
+  return true;
+}
+
+void Space::Point(PetscInt c, const PetscReal *lambda, PetscReal *x) const
+{
+  const PetscReal *Xc = X(c);
+  for (PetscInt d = 0; d < dim; ++d) {
+    x[d] = 0;
+    for (PetscInt k = 0; k <= dim; ++k) x[d] += lambda[k] * Xc[k * dim + d];
+  }
+}
+
+PetscReal Space::FaceMeasure(const BoundaryFace &bf) const
+{
+  const PetscReal *Xc = X(bf.cell);
+  PetscInt         v[3], n = 0;
+  for (PetscInt k = 0; k <= dim; ++k)
+    if (k != bf.opposite) v[n++] = k;
+  PetscReal e[2][3] = {{0}};
+  for (PetscInt j = 1; j < dim; ++j)
+    for (PetscInt d = 0; d < dim; ++d) e[j - 1][d] = Xc[v[j] * dim + d] - Xc[v[0] * dim + d];
+  if (dim == 2) return std::hypot(e[0][0], e[0][1]);
+  const PetscReal cx = e[0][1] * e[1][2] - e[0][2] * e[1][1], cy = e[0][2] * e[1][0] - e[0][0] * e[1][2], cz = e[0][0] * e[1][1] - e[0][1] * e[1][0];
+  return 0.5 * std::sqrt(cx * cx + cy * cy + cz * cz);
+}
+
+void Space::FaceToCell(const BoundaryFace &bf, const PetscReal *mu, PetscReal *lambda) const
+{
+  PetscInt n = 0;
+  for (PetscInt k = 0; k <= dim; ++k) lambda[k] = k == bf.opposite ? 0.0 : mu[n++];
+}
+
+// Vertices of point p (in closure order) within [vStart, vEnd).
+static PetscErrorCode ClosureVertices(DM dm, PetscInt p, PetscInt vStart, PetscInt vEnd, std::vector<PetscInt> &verts)
+{
+  PetscInt *closure = nullptr, n;
+  PetscFunctionBeginUser;
+  verts.clear();
+  PetscCall(DMPlexGetTransitiveClosure(dm, p, PETSC_TRUE, &n, &closure));
+  for (PetscInt i = 0; i < n; ++i)
+    if (closure[2 * i] >= vStart && closure[2 * i] < vEnd) verts.push_back(closure[2 * i]);
+  PetscCall(DMPlexRestoreTransitiveClosure(dm, p, PETSC_TRUE, &n, &closure));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode CreateSection(Space &s, PetscInt vStart, PetscInt vEnd, PetscInt fStart, PetscInt fEnd)
+{
+  PetscSection section;
+  PetscInt     pStart, pEnd;
+  PetscFunctionBeginUser;
+  PetscCall(PetscSectionCreate(PetscObjectComm((PetscObject)s.dm), &section));
+  PetscCall(PetscSectionSetNumFields(section, 1));
+  PetscCall(PetscSectionSetFieldName(section, 0, "u"));
+  PetscCall(DMPlexGetChart(s.dm, &pStart, &pEnd));
+  PetscCall(PetscSectionSetChart(section, pStart, pEnd));
+  const PetscInt start = s.element == Element::P1 ? vStart : fStart, end = s.element == Element::P1 ? vEnd : fEnd;
+  for (PetscInt p = start; p < end; ++p) {
+    PetscCall(PetscSectionSetDof(section, p, 1));
+    PetscCall(PetscSectionSetFieldDof(section, p, 0, 1));
+  }
+  PetscCall(PetscSectionSetUp(section));
+  PetscCall(PetscSectionGetStorageSize(section, &s.numLocal));
+  PetscCall(DMSetLocalSection(s.dm, section));
+  PetscCall(PetscSectionDestroy(&section));
+  PetscCall(DMSetMatType(s.dm, MATAIJ));
+  PetscSection global;
+  PetscCall(DMGetGlobalSection(s.dm, &global));
+  PetscCall(PetscSectionGetConstrainedStorageSize(global, &s.numOwned));
+  PetscCallMPI(MPI_Allreduce(&s.numOwned, &s.numGlobal, 1, MPIU_INT, MPI_SUM, PetscObjectComm((PetscObject)s.dm)));
+  PetscFunctionReturn(0);
+}
+
+// Cell tables: vertex coordinates, DOFs, the vertex opposite each cone face, Cell Sets values.
+static PetscErrorCode BuildCellTables(Space &s, PetscInt vStart, PetscInt vEnd)
+{
+  Vec                coords;
+  DM                 cdm;
+  PetscSection       csec, section;
+  const PetscScalar *xa;
+  DMLabel            cellSets;
+  std::vector<PetscInt> verts, fverts;
+  std::string        problem;
+  PetscFunctionBeginUser;
+  const PetscInt nb = s.dim + 1, nc = s.NumCells();
+  PetscCall(DMGetLocalSection(s.dm, &section));
+  PetscCall(DMGetCoordinatesLocal(s.dm, &coords));
+  PetscCall(DMGetCoordinateDM(s.dm, &cdm));
+  PetscCall(DMGetLocalSection(cdm, &csec));
+  PetscCall(DMGetLabel(s.dm, "Cell Sets", &cellSets));
+  PetscCall(VecGetArrayRead(coords, &xa));
+  s.cellDof.resize(nc * nb);
+  s.cellOpp.resize(nc * nb);
+  s.cellX.resize(nc * nb * s.dim);
+  s.cellSet.assign(nc, -1);
+  s.dofPoint.assign(s.numLocal * s.dim, 0.0);
+  for (PetscInt c = 0; c < nc; ++c) {
+    const PetscInt  cell = s.cStart + c;
+    const PetscInt *cone;
+    PetscCall(ClosureVertices(s.dm, cell, vStart, vEnd, verts));
+    PetscCall(DMPlexGetCone(s.dm, cell, &cone));
+    for (PetscInt k = 0; k < nb; ++k) {
+      PetscInt off;
+      PetscCall(PetscSectionGetOffset(csec, verts[k], &off));
+      for (PetscInt d = 0; d < s.dim; ++d) s.cellX[(c * nb + k) * s.dim + d] = PetscRealPart(xa[off + d]);
+      PetscCall(ClosureVertices(s.dm, cone[k], vStart, vEnd, fverts));
+      for (PetscInt j = 0; j < nb; ++j)
+        if (std::find(fverts.begin(), fverts.end(), verts[j]) == fverts.end()) s.cellOpp[c * nb + k] = j;
+    }
+    for (PetscInt i = 0; i < nb; ++i) {
+      PetscInt off;
+      PetscCall(PetscSectionGetOffset(section, s.element == Element::P1 ? verts[i] : cone[i], &off));
+      s.cellDof[c * nb + i] = off;
+    }
+    if (cellSets) PetscCall(DMLabelGetValue(cellSets, cell, &s.cellSet[c]));
+    CellGeometry g;
+    if (!ComputeCellGeometry(s.dim, s.X(c), g) && problem.empty()) problem = Format("mesh: cell %d (centroid near (%g, %g)) is degenerate", (int)cell, (double)s.cellX[c * nb * s.dim], (double)s.cellX[c * nb * s.dim + 1]);
+    // DOF points: the vertex (P1) or the face centroid (CR), i.e. where phi_i = 1 in this cell.
+    for (PetscInt i = 0; i < nb; ++i) {
+      PetscReal lambda[4];
+      for (PetscInt k = 0; k < nb; ++k) lambda[k] = s.element == Element::P1 ? (k == i) : (k == s.K(c, i) ? 0.0 : 1.0 / s.dim);
+      s.Point(c, lambda, &s.dofPoint[s.cellDof[c * nb + i] * s.dim]);
+    }
+  }
+  PetscCall(VecRestoreArrayRead(coords, &xa));
+  PetscCall(CheckAll(PetscObjectComm((PetscObject)s.dm), problem.empty(), problem));
+  PetscFunctionReturn(0);
+}
+
+// Collects the faces of every named part, checking that each part exists and lies on the boundary.
+static PetscErrorCode CollectBoundary(Space &s, const Problem &problem, PetscInt fStart, PetscInt fEnd)
+{
+  MPI_Comm comm = PetscObjectComm((PetscObject)s.dm);
+  DMLabel  faceSets, boundary;
+  PetscFunctionBeginUser;
+  PetscCall(DMGetLabel(s.dm, "Face Sets", &faceSets));
+  PetscCall(DMLabelCreate(PETSC_COMM_SELF, "boundary", &boundary));
+  PetscCall(DMPlexMarkBoundaryFaces(s.dm, 1, boundary));
+  const std::pair<const char *, const std::vector<PetscInt> *> parts[] = {{"-bc_dirichlet", &problem.dirichlet}, {"-bc_neumann", &problem.neumann}, {"-bc_contact", &problem.contact}};
+  std::string interior;
+  for (const auto &part : parts) {
+    for (PetscInt value : *part.second) {
+      PetscInt local = 0, global = 0;
+      IS       is    = nullptr;
+      if (faceSets) PetscCall(DMLabelGetStratumIS(faceSets, value, &is));
+      if (is) {
+        PetscInt        n;
+        const PetscInt *pts;
+        PetscCall(ISGetLocalSize(is, &n));
+        PetscCall(ISGetIndices(is, &pts));
+        for (PetscInt j = 0; j < n; ++j) {
+          const PetscInt f = pts[j];
+          if (f < fStart || f >= fEnd) continue; // refined labels also hold vertices and edges
+          PetscInt isBoundary, nsupp;
+          const PetscInt *supp, *cone;
+          PetscCall(DMLabelGetValue(boundary, f, &isBoundary));
+          PetscCall(DMPlexGetSupportSize(s.dm, f, &nsupp));
+          if (isBoundary != 1 || nsupp != 1) {
+            if (interior.empty()) interior = Format("option %s: boundary part %d contains interior faces", part.first, (int)value);
+            continue;
+          }
+          PetscCall(DMPlexGetSupport(s.dm, f, &supp));
+          PetscCall(DMPlexGetCone(s.dm, supp[0], &cone));
+          BoundaryFace bf{supp[0] - s.cStart, -1, value, -1};
+          for (PetscInt k = 0; k <= s.dim; ++k)
+            if (cone[k] == f) {
+              bf.opposite = s.cellOpp[bf.cell * s.Nb() + k];
+              if (s.element == Element::CR) bf.dof = s.cellDof[bf.cell * s.Nb() + k];
+            }
+          s.boundary.push_back(bf);
+          ++local;
+        }
+        PetscCall(ISRestoreIndices(is, &pts));
+        PetscCall(ISDestroy(&is));
+      }
+      PetscCallMPI(MPI_Allreduce(&local, &global, 1, MPIU_INT, MPI_SUM, comm));
+      if (global == 0) SIGNORINI_INPUT_ERROR(comm, "option %s: boundary part %" PetscInt_FMT " does not exist on the mesh (no face carries that \"Face Sets\" value)", part.first, value);
+    }
+  }
+  PetscCall(DMLabelDestroy(&boundary));
+  PetscCall(CheckAll(comm, interior.empty(), interior));
+  PetscFunctionReturn(0);
+}
+
+// Marks Dirichlet and contact DOFs. A P1 vertex where Gamma_D meets Gamma_C is Dirichlet. Flags are summed
+// over ranks so that a vertex shared by two ranks gets the same kind on both.
+static PetscErrorCode ClassifyDofs(Space &s, const Problem &problem)
+{
+  Vec          lflag[2], gflag[2];
+  PetscScalar *a;
+  PetscFunctionBeginUser;
+  for (int k = 0; k < 2; ++k) {
+    PetscCall(DMGetLocalVector(s.dm, &lflag[k]));
+    PetscCall(DMGetGlobalVector(s.dm, &gflag[k]));
+    PetscCall(VecSet(lflag[k], 0));
+    PetscCall(VecSet(gflag[k], 0));
+  }
+  for (int k = 0; k < 2; ++k) {
+    const std::vector<PetscInt> &parts = k == 0 ? problem.dirichlet : problem.contact;
+    PetscCall(VecGetArray(lflag[k], &a));
+    for (const BoundaryFace &bf : s.boundary) {
+      if (std::find(parts.begin(), parts.end(), bf.part) == parts.end()) continue;
+      if (s.element == Element::CR) a[bf.dof] = 1;
+      else
+        for (PetscInt i = 0; i < s.Nb(); ++i)
+          if (i != bf.opposite) a[s.Dofs(bf.cell)[i]] = 1;
+    }
+    PetscCall(VecRestoreArray(lflag[k], &a));
+    PetscCall(DMLocalToGlobal(s.dm, lflag[k], ADD_VALUES, gflag[k]));
+    PetscCall(DMGlobalToLocal(s.dm, gflag[k], INSERT_VALUES, lflag[k]));
+  }
+  const PetscScalar *ld, *lc, *gd, *gc;
+  PetscCall(VecGetArrayRead(lflag[0], &ld));
+  PetscCall(VecGetArrayRead(lflag[1], &lc));
+  s.kindLocal.assign(s.numLocal, kFree);
+  for (PetscInt i = 0; i < s.numLocal; ++i) s.kindLocal[i] = PetscRealPart(ld[i]) > 0 ? kDirichlet : (PetscRealPart(lc[i]) > 0 ? kContact : kFree);
+  PetscCall(VecRestoreArrayRead(lflag[0], &ld));
+  PetscCall(VecRestoreArrayRead(lflag[1], &lc));
+  PetscCall(VecGetArrayRead(gflag[0], &gd));
+  PetscCall(VecGetArrayRead(gflag[1], &gc));
+  for (PetscInt i = 0; i < s.numOwned; ++i) {
+    if (PetscRealPart(gd[i]) > 0) s.dirichletOwned.push_back(i);
+    else if (PetscRealPart(gc[i]) > 0) s.contactOwned.push_back(i);
+  }
+  PetscCall(VecRestoreArrayRead(gflag[0], &gd));
+  PetscCall(VecRestoreArrayRead(gflag[1], &gc));
+  for (int k = 0; k < 2; ++k) {
+    PetscCall(DMRestoreLocalVector(s.dm, &lflag[k]));
+    PetscCall(DMRestoreGlobalVector(s.dm, &gflag[k]));
+  }
+  PetscInt counts[2] = {(PetscInt)s.dirichletOwned.size(), (PetscInt)s.contactOwned.size()}, sums[2];
+  PetscCallMPI(MPI_Allreduce(counts, sums, 2, MPIU_INT, MPI_SUM, PetscObjectComm((PetscObject)s.dm)));
+  s.numDirichletGlobal = sums[0];
+  s.numContactGlobal   = sums[1];
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Space &s)
+{
+  PetscInt vStart, vEnd, fStart, fEnd;
+  PetscFunctionBeginUser;
+  PetscCall(DMClone(mesh, &s.dm));
+  PetscCall(PetscObjectSetName((PetscObject)s.dm, "mesh"));
+  s.element = element;
+  PetscCall(DMGetDimension(s.dm, &s.dim));
+  PetscCheck(s.dim == 2 || s.dim == 3, PetscObjectComm((PetscObject)mesh), PETSC_ERR_SUP, "only 2D and 3D simplex meshes are supported");
+  PetscCall(DMPlexGetDepthStratum(s.dm, 0, &vStart, &vEnd));
+  PetscCall(DMPlexGetHeightStratum(s.dm, 1, &fStart, &fEnd));
+  PetscCall(DMPlexGetHeightStratum(s.dm, 0, &s.cStart, &s.cEnd));
+  PetscCall(CreateSection(s, vStart, vEnd, fStart, fEnd));
+  PetscCall(BuildCellTables(s, vStart, vEnd));
+  PetscCall(CollectBoundary(s, problem, fStart, fEnd));
+  PetscCall(ClassifyDofs(s, problem));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SpaceDestroy(Space &s)
+{
+  PetscFunctionBeginUser;
+  PetscCall(DMDestroy(&s.dm));
+  s = Space();
+  PetscFunctionReturn(0);
+}
+
+} // namespace signorini
