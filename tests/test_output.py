@@ -1,0 +1,45 @@
+"""-output writes HDF5 + XDMF that a viewer can open: the XDMF parses and points at datasets that exist with
+the stated shapes, and for a linear exact solution the vertex field equals u at the vertices and the cell
+field equals u at the cell centroids (comparison with the exact solution), for both elements, on 1 and 2
+ranks. No temporary file is left behind."""
+import os
+import tempfile
+import xml.etree.ElementTree as ET
+
+from harness import Checker, run
+
+c = Checker()
+try:
+    import h5py
+    import numpy as np
+except ImportError:  # run/setup installs python3-h5py; without it only the file checks run
+    h5py = None
+
+u = "1 + 2*x - 3*y"
+base = ["-dim", "2", "-box_faces", "6,4", "-bc_dirichlet", "3", "-bc_neumann", "2,4", "-bc_contact", "1",
+        "-u_D", u, "-g", "x < 0.5 ? -2 : 2", "-psi", "1 + 2*x", "-ksp_rtol", "1e-13", "-snes_rtol", "1e-13"]
+for space in ["p1", "cr"]:
+    for ranks in [1, 2]:
+        with tempfile.TemporaryDirectory() as tmp:
+            out = os.path.join(tmp, "sol.h5")
+            run(base + ["-space", space, "-output", out], ranks=ranks)
+            tag = "%s on %d rank(s)" % (space, ranks)
+            files = sorted(os.listdir(tmp))
+            c.check(files == ["sol.h5", "sol.xmf"], "%s: files %s" % (tag, files))
+            root = ET.parse(os.path.join(tmp, "sol.xmf")).getroot()
+            items = {d.text.split(":")[1]: tuple(int(n) for n in d.get("Dimensions").split()) for d in root.iter("DataItem")}
+            c.check(len(items) == 4, "%s: XDMF names topology, geometry and two fields" % tag)
+            if h5py is None:
+                continue
+            with h5py.File(out, "r") as f:
+                shapes_ok = all(path in f and np.prod(f[path].shape) == np.prod(dims) for path, dims in items.items())
+                c.check(shapes_ok, "%s: every XDMF DataItem exists in the HDF5 file with its size" % tag)
+                X = f["/geometry/vertices"][:]
+                cells = f["/viz/topology/cells"][:]
+                uv = f["/vertex_fields/u_vertex_value"][:]
+                uc = f["/cell_fields/u_cell_value"][:]
+            exact = lambda p: 1 + 2 * p[..., 0] - 3 * p[..., 1]
+            c.check(np.max(np.abs(uv - exact(X))) < 1e-10, "%s: vertex field = u at the vertices" % tag)
+            centroids = X[cells].mean(axis=1)
+            c.check(np.max(np.abs(uc - exact(centroids))) < 1e-10, "%s: cell field = u at the centroids" % tag)
+c.done()
