@@ -181,6 +181,20 @@ static PetscErrorCode MeasureKKT(const Space &space, const System &sys, Vec u, V
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode SolverOptionsHelp(MPI_Comm comm)
+{
+  SNES snes;
+  KSP  ksp;
+  PetscFunctionBeginUser;
+  PetscCall(SNESCreate(comm, &snes));
+  PetscCall(SNESSetType(snes, SNESVINEWTONRSLS));
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(ConfigureKSP(ksp));
+  PetscCall(SNESSetFromOptions(snes));
+  PetscCall(SNESDestroy(&snes));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Solve(const Space &space, const Problem &problem, const System &sys, Vec u, SolveResult &r)
 {
   Vec lower = nullptr, measure = nullptr;

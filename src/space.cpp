@@ -38,7 +38,14 @@ bool ComputeCellGeometry(PetscInt dim, const PetscReal *X, CellGeometry &g)
         inv[i][j] = (J[r0][c0] * J[r1][c1] - J[r0][c1] * J[r1][c0]) / det;
       }
   }
-  if (!(std::fabs(det) > 0) || !std::isfinite(det)) return false;
+  // Degenerate: |det| tiny relative to the cell's size (round-off leaves collinear vertices a det ~ 1e-17).
+  PetscReal h = 0;
+  for (PetscInt k = 0; k < dim; ++k) {
+    PetscReal len2 = 0;
+    for (PetscInt r = 0; r < dim; ++r) len2 += J[r][k] * J[r][k];
+    h = std::max(h, std::sqrt(len2));
+  }
+  if (!std::isfinite(det) || !(std::fabs(det) > 1e-12 * std::pow(h, (PetscReal)dim))) return false;
   g.volume = std::fabs(det) / (dim == 2 ? 2.0 : 6.0);
   for (PetscInt d = 0; d < dim; ++d) {
     g.gradLambda[0][d] = 0;

@@ -26,6 +26,8 @@ struct SolveResult {
   PetscReal energy = 0;
 };
 
+// With -help: lists the SNES, KSP and PC options of the default solver without solving anything.
+PetscErrorCode SolverOptionsHelp(MPI_Comm comm);
 // u: global vector of the space, overwritten with the solution. Pushes the Solve stage.
 PetscErrorCode Solve(const Space &space, const Problem &problem, const System &sys, Vec u, SolveResult &result);
 
