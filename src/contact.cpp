@@ -173,8 +173,8 @@ static PetscErrorCode MeasureKKT(const Space &space, const System &sys, Vec u, V
   r.complementarity = maxs[0];
   r.pressureMax     = maxs[1];
   r.gapMax          = maxs[2];
-  // Active: u = psi up to round-off relative to the size of u (RSLS sets active DOFs exactly to psi).
-  const PetscReal tol = 1e-12 * std::max((PetscReal)1.0, maxs[3]);
+  // Active: u = psi up to the linear solver tolerance relative to the size of u.
+  const PetscReal tol = 1e-10 * std::max((PetscReal)1.0, maxs[3]);
   PetscInt        active = 0;
   for (PetscReal g : gaps) active += g <= tol;
   PetscCallMPI(MPI_Allreduce(&active, &r.active, 1, MPIU_INT, MPI_SUM, comm));

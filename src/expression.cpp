@@ -30,7 +30,10 @@ PetscErrorCode Expression::Create(MPI_Comm comm, const std::string &option, cons
     e.parser_->Eval(n); // muparser parses lazily: evaluate once so syntax errors surface here
     if (n != components) message = Format("option %s: '%s' has %d component(s), expected %d", option.c_str(), text.c_str(), n, components);
   } catch (mu::Parser::exception_type &err) {
-    message = Format("option %s: cannot parse '%s': %s", option.c_str(), text.c_str(), err.GetMsg().c_str());
+    std::string what = err.GetMsg();
+    what.erase(what.find_last_not_of(" .") + 1);
+    if (err.GetCode() == mu::ecUNASSIGNABLE_TOKEN) what += " (not a known name: the variables are x, y, z, cell_set and the constant pi)";
+    message = Format("option %s: cannot parse '%s': %s", option.c_str(), text.c_str(), what.c_str());
   }
   // Every rank parses the same text, so every rank reaches the same verdict.
   if (!message.empty()) SIGNORINI_INPUT_ERROR(comm, "%s", message.c_str());

@@ -59,9 +59,20 @@ static PetscErrorCode Run(MPI_Comm comm)
   PetscFunctionBeginUser;
   PetscCall(PetscTime(&start));
   PetscCall(StagesRegister());
-  PetscCall(ReadSettings(comm, s));
+  // Reading options involves no rank-dependent work (every rank sees the same options database), so an
+  // error PETSc raises there (an -space value not in its list, "-refine abc") is an input error on all ranks.
+  PetscErrorCode ierr = ReadSettings(comm, s);
+  if (ierr && ierr != kInputError) {
+    std::string message = LastPetscError(ierr);
+    message.erase(message.find_last_not_of(" \n") + 1);
+    SIGNORINI_INPUT_ERROR(comm, "invalid option: %s", message.c_str());
+  }
+  PetscCall(ierr);
   PetscCall(PetscOptionsHasHelp(NULL, &help));
-  if (help) PetscFunctionReturn(0);
+  if (help) {
+    PetscCall(SolverOptionsHelp(comm));
+    PetscFunctionReturn(0);
+  }
 
   // mesh -> space -> assembly -> solve -> errors -> report -> output
   PetscCall(MeshCreate(comm, s.mesh, &mesh, meshInfo));

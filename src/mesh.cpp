@@ -115,7 +115,7 @@ static PetscErrorCode LabelBoxSides(DM dm, const MeshOptions &o)
   PetscCall(DMCreateLabel(dm, "Face Sets"));
   PetscCall(DMGetLabel(dm, "Face Sets", &faceSets));
   PetscCall(DMPlexGetHeightStratum(dm, 1, &fStart, &fEnd));
-  PetscReal tol = 1e-10 * (o.upper[0] - o.lower[0]);
+
   for (PetscInt f = fStart; f < fEnd; ++f) {
     PetscInt nsupp;
     PetscCall(DMPlexGetSupportSize(dm, f, &nsupp));
@@ -126,6 +126,7 @@ static PetscErrorCode LabelBoxSides(DM dm, const MeshOptions &o)
     static const PetscInt side2[2][2] = {{4, 2}, {1, 3}}, side3[3][2] = {{6, 5}, {3, 4}, {1, 2}};
     PetscInt              value       = -1;
     for (PetscInt d = 0; d < dim && value < 0; ++d) {
+      const PetscReal tol = 1e-10 * (o.upper[d] - o.lower[d]);
       if (std::fabs(c[d] - o.lower[d]) < tol) value = dim == 2 ? side2[d][0] : side3[d][0];
       else if (std::fabs(c[d] - o.upper[d]) < tol) value = dim == 2 ? side2[d][1] : side3[d][1];
     }
@@ -186,7 +187,7 @@ static PetscErrorCode CreateFromGmsh(MPI_Comm comm, const MeshOptions &o, DM *dm
     char  line[64] = "";
     if (!fp) problem = name + ": cannot open it for reading";
     else {
-      if (!std::fgets(line, sizeof line, fp)) problem = name + ": the file is empty";
+      if (!std::fgets(line, sizeof line, fp)) problem = name + (std::ferror(fp) ? ": cannot be read (is it a directory?)" : ": the file is empty");
       else if (std::strncmp(line, "$MeshFormat", 11) != 0) problem = name + ": not a Gmsh mesh (no $MeshFormat header)";
       std::fclose(fp);
     }

@@ -1,0 +1,79 @@
+"""Gmsh meshes (tests/data/square.msh, tests/data/cube.msh): the physical groups become the boundary parts
+and the "Cell Sets" used by kappa. A linear exact solution is reproduced to round-off on both meshes with
+both elements, on 1 and 2 ranks; and a kappa that jumps between the two cell sets of the square gives the
+piecewise linear exact solution with continuous flux, again to round-off."""
+import os
+
+from harness import ROOT, Checker, run
+
+c = Checker()
+DATA = os.path.join(ROOT, "tests", "data")
+SQUARE = os.path.join(DATA, "square.msh")
+CUBE = os.path.join(DATA, "cube.msh")
+tight = ["-ksp_rtol", "1e-13", "-snes_rtol", "1e-13"]
+
+
+def round_off(s):
+    e = s["error"]
+    return e["l2"] < 1e-10 and e["h1_semi"] < 1e-9
+
+
+# A linear u solves the Signorini problem exactly only if, on Gamma_C, either du/dn = 0 (contact inactive:
+# psi below u) or u = psi with pressure du/dn > 0 (contact active everywhere); both are checked.
+# Square: bottom 1 (contact, n = -y), right 2, top 3 (Dirichlet), left 4 (Neumann on 2 and 4).
+g2 = "x < 0.5 ? -2 : 2"
+cases2d = {
+    # u = 1 + 2x: du/dn = 0 on the bottom, psi = u - 1.
+    "inactive": dict(u="1 + 2*x", grad="2, 0", psi="2*x"),
+    # u = 1 + 2x - 3y, psi = u on the bottom: active everywhere with pressure du/dn = -du/dy = 3.
+    "active": dict(u="1 + 2*x - 3*y", grad="2, -3", psi="1 + 2*x"),
+}
+# Cube: bottom z=0 1 (contact, n = -z), top 2 (Dirichlet), front y=0 3, back y=1 4, right x=1 5, left x=0 6.
+g3 = "x < 1e-6 ? -2 : (x > 1 - 1e-6 ? 2 : (y < 1e-6 ? 3 : -3))"
+cases3d = {
+    # u = 1 + 2x - 3y: du/dn = 0 on the bottom, psi = u - 1.
+    "inactive": dict(u="1 + 2*x - 3*y", grad="2, -3, 0", psi="2*x - 3*y"),
+    # u = 1 + 2x - 3y - 0.5z, psi = u on the bottom: active everywhere with pressure -du/dz = 0.5.
+    "active": dict(u="1 + 2*x - 3*y - 0.5*z", grad="2, -3, -0.5", psi="1 + 2*x - 3*y"),
+}
+meshes = [("square", SQUARE, 2, "3", "2,4", g2, cases2d), ("cube", CUBE, 3, "2", "3,4,5,6", g3, cases3d)]
+for mesh, path, dim, dirichlet, neumann, g, cases in meshes:
+    for name, d in cases.items():
+        for space in ["p1", "cr"]:
+            for ranks in [1, 2]:
+                args = ["-mesh_file", path, "-space", space, "-bc_dirichlet", dirichlet, "-u_D", d["u"],
+                        "-bc_neumann", neumann, "-g", g, "-bc_contact", "1", "-psi", d["psi"], "-f", "0",
+                        "-exact_u", d["u"], "-exact_grad", d["grad"]] + tight
+                _, _, _, s = run(args, ranks=ranks)
+                e = s["error"]
+                what = "%s %s %s %d rank(s)" % (mesh, name, space, ranks)
+                c.check(s["dim"] == dim and s["ranks"] == ranks and s["solver"]["type"] == "snesvi",
+                        "%s: dim %d, %d rank(s), solver %s" % (what, s["dim"], s["ranks"], s["solver"]["type"]))
+                k = s["kkt"]
+                if name == "inactive":  # gap u - psi = 1 everywhere
+                    ok = k["active"] == 0 and abs(k["min_gap"] - 1) < 1e-9
+                else:  # u = psi up to the linear solver's tolerance, pressure > 0 (SNESVI may leave a DOF it
+                    # counts as active a few 1e-12 above psi, so the gap is checked instead of the active count)
+                    ok = k["max_gap"] < 1e-10 and k["min_pressure"] > 0.1
+                c.check(s["contact_dofs"] > 0 and ok, "%s: %d of %d contact DOFs active, gap in [%.2e, %.2e], pressure >= %.3g"
+                        % (what, k["active"], s["contact_dofs"], k["min_gap"], k["max_gap"], k["min_pressure"]))
+                c.check(round_off(s), "%s: linear u reproduced, L2 %.2e H1 %.2e" % (what, e["l2"], e["h1_semi"]))
+
+# kappa jumps between the cell sets of the square (1: x < 0.5, 2: x > 0.5). With u = x on the left and
+# u = 0.5 + (x - 0.5)/100 on the right the flux kappa du/dx = 1 is continuous, so u solves the problem
+# with Dirichlet data on the left and right (4, 2), g = 0 on the top and bottom (3, 1), f = 0, no contact.
+uj = "x < 0.5 ? x : 0.5 + (x - 0.5)/100"
+argsj = ["-mesh_file", SQUARE, "-kappa", "cell_set == 1 ? 1 : 100", "-bc_dirichlet", "4,2", "-u_D", uj,
+         "-bc_neumann", "3,1", "-g", "0", "-f", "0", "-exact_u", uj, "-exact_grad", "x < 0.5 ? 1 : 0.01, 0"] + tight
+for space in ["p1", "cr"]:
+    for ranks in [1, 2]:
+        _, _, _, s = run(argsj + ["-space", space], ranks=ranks)
+        e = s["error"]
+        what = "square kappa jump %s %d rank(s)" % (space, ranks)
+        c.check(s["solver"]["type"] == "ksp", "%s: no contact part, plain KSP solve (%s)" % (what, s["solver"]["type"]))
+        c.check(round_off(s), "%s: piecewise linear u reproduced, L2 %.2e H1 %.2e" % (what, e["l2"], e["h1_semi"]))
+
+# The same problem with kappa = 1 everywhere is not solved by that u: the cell sets really are used.
+_, _, _, s = run([a if a != "cell_set == 1 ? 1 : 100" else "1" for a in argsj] + ["-space", "cr"])
+c.check(s["error"]["l2"] > 1e-3, "square kappa = 1 (no jump): error %.2e is not round-off" % s["error"]["l2"])
+c.done()
