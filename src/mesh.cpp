@@ -2,6 +2,7 @@
 #include "signorini/stages.h"
 
 #include <metis.h>
+#include <petscdmplextransform.h>
 
 #include <algorithm>
 #include <cmath>
@@ -244,6 +245,34 @@ static PetscErrorCode PartitionWithMetis(DM dm, PetscInt &edgeCut)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode MeshRefine(DM coarse, DM *fine, std::vector<PetscInt> *parent)
+{
+  DMPlexTransform tr;
+  PetscFunctionBeginUser;
+  // The transform is kept until the parent map is read: it knows the source point of every new point.
+  PetscCall(DMPlexTransformCreate(PetscObjectComm((PetscObject)coarse), &tr));
+  PetscCall(DMPlexTransformSetDM(tr, coarse));
+  PetscCall(DMPlexTransformSetType(tr, DMPLEXREFINEREGULAR));
+  PetscCall(DMPlexTransformSetUp(tr));
+  PetscCall(DMPlexTransformApply(tr, coarse, fine));
+  PetscCall(DMPlexSetRegularRefinement(*fine, PETSC_TRUE));
+  PetscCall(PetscObjectSetName((PetscObject)*fine, "mesh"));
+  if (parent) {
+    PetscInt fStart, fEnd, cStart;
+    PetscCall(DMPlexGetHeightStratum(coarse, 0, &cStart, NULL));
+    PetscCall(DMPlexGetHeightStratum(*fine, 0, &fStart, &fEnd));
+    parent->resize(fEnd - fStart);
+    for (PetscInt c = fStart; c < fEnd; ++c) {
+      DMPolytopeType ct, rct;
+      PetscInt       source, replica;
+      PetscCall(DMPlexTransformGetSourcePoint(tr, c, &ct, &rct, &source, &replica));
+      (*parent)[c - fStart] = source - cStart;
+    }
+  }
+  PetscCall(DMPlexTransformDestroy(&tr));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &o, DM *dm, MeshInfo &info)
 {
   PetscMPIInt size;
@@ -280,7 +309,7 @@ PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &o, DM *dm, MeshInfo 
   PetscCall(StagePush(Stage::Refine));
   for (PetscInt k = 0; k < o.refine; ++k) {
     DM fine = nullptr;
-    PetscCall(DMRefine(*dm, comm, &fine));
+    PetscCall(MeshRefine(*dm, &fine, nullptr));
     PetscCall(DMDestroy(dm));
     *dm = fine;
   }

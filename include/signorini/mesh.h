@@ -37,6 +37,10 @@ struct MeshInfo {
 };
 
 PetscErrorCode MeshOptionsFromCommandLine(MPI_Comm comm, MeshOptions &opts);
+// One uniform (regular) refinement, local to each rank. If `parent` is given, parent[c] is the cell of
+// `coarse` (as c - cStart) that fine cell cStart + c came from: the nested-mesh map used to evaluate a
+// coarse function on the fine mesh.
+PetscErrorCode MeshRefine(DM coarse, DM *fine, std::vector<PetscInt> *parent);
 // Collective: builds, partitions, distributes and refines; pushes the Mesh, Distribute and Refine stages.
 PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &opts, DM *dm, MeshInfo &info);
 
