@@ -63,4 +63,84 @@ PetscErrorCode ErrorAgainstExact(const Space &space, const Problem &problem, Vec
   PetscFunctionReturn(0);
 }
 
+// Values of the discrete function on a cell: u_h(x) = sum_i a_i phi_i(x), grad u_h constant.
+namespace {
+struct CellFunction {
+  const Space       *space;
+  const PetscScalar *a;
+  PetscInt           c;
+  CellGeometry       g;
+  PetscReal          grad[3];
+  void Init(const Space &s, const PetscScalar *array, PetscInt cell)
+  {
+    space = &s;
+    a     = array;
+    c     = cell;
+    ComputeCellGeometry(s.dim, s.X(c), g);
+    PetscReal gi[3];
+    for (PetscInt d = 0; d < 3; ++d) grad[d] = 0;
+    for (PetscInt i = 0; i < s.Nb(); ++i) {
+      s.BasisGrad(c, i, g, gi);
+      for (PetscInt d = 0; d < s.dim; ++d) grad[d] += PetscRealPart(a[s.Dofs(c)[i]]) * gi[d];
+    }
+  }
+  PetscReal Value(const PetscReal *x) const
+  {
+    // barycentric coordinates of x: lambda_k = grad lambda_k . (x - X_0) for k >= 1
+    const PetscInt   dim = space->dim;
+    const PetscReal *X0  = space->X(c);
+    PetscReal        lambda[4], sum = 0, v = 0;
+    for (PetscInt k = 1; k <= dim; ++k) {
+      lambda[k] = 0;
+      for (PetscInt d = 0; d < dim; ++d) lambda[k] += g.gradLambda[k][d] * (x[d] - X0[d]);
+      sum += lambda[k];
+    }
+    lambda[0] = 1 - sum;
+    for (PetscInt i = 0; i <= dim; ++i) v += PetscRealPart(a[space->Dofs(c)[i]]) * space->BasisValue(c, i, lambda);
+    return v;
+  }
+};
+} // namespace
+
+PetscErrorCode ErrorAgainstReference(const Space &coarse, Vec uH, const Space &fine, Vec uh, const std::vector<PetscInt> &parent, ErrorNorms &e)
+{
+  Vec                locH, loch;
+  const PetscScalar *aH, *ah;
+  const Quadrature   rule = SimplexQuadrature(fine.dim, 2);
+  PetscReal          sums[2] = {0, 0};
+  PetscFunctionBeginUser;
+  PetscCall(StagePush(Stage::Error));
+  PetscCheck((PetscInt)parent.size() == fine.NumCells(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "parent map has %d entries for %d fine cells", (int)parent.size(), (int)fine.NumCells());
+  PetscCall(DMGetLocalVector(coarse.dm, &locH));
+  PetscCall(DMGetLocalVector(fine.dm, &loch));
+  PetscCall(DMGlobalToLocal(coarse.dm, uH, INSERT_VALUES, locH));
+  PetscCall(DMGlobalToLocal(fine.dm, uh, INSERT_VALUES, loch));
+  PetscCall(VecGetArrayRead(locH, &aH));
+  PetscCall(VecGetArrayRead(loch, &ah));
+  CellFunction fH, fh;
+  for (PetscInt c = 0; c < fine.NumCells(); ++c) {
+    fh.Init(fine, ah, c);
+    fH.Init(coarse, aH, parent[c]);
+    PetscReal d2 = 0;
+    for (PetscInt d = 0; d < fine.dim; ++d) d2 += (fH.grad[d] - fh.grad[d]) * (fH.grad[d] - fh.grad[d]);
+    sums[1] += d2 * fh.g.volume;
+    for (PetscInt q = 0; q < rule.Size(); ++q) {
+      PetscReal x[3];
+      fine.Point(c, rule.Point(q), x);
+      const PetscReal diff = fH.Value(x) - fh.Value(x);
+      sums[0] += rule.weights[q] * fh.g.volume * diff * diff;
+    }
+  }
+  PetscCall(VecRestoreArrayRead(locH, &aH));
+  PetscCall(VecRestoreArrayRead(loch, &ah));
+  PetscCall(DMRestoreLocalVector(coarse.dm, &locH));
+  PetscCall(DMRestoreLocalVector(fine.dm, &loch));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, sums, 2, MPIU_REAL, MPI_SUM, PetscObjectComm((PetscObject)fine.dm)));
+  e.l2     = std::sqrt(sums[0]);
+  e.h1semi = std::sqrt(sums[1]);
+  e.h1     = std::sqrt(sums[0] + sums[1]);
+  PetscCall(StagePop(Stage::Error));
+  PetscFunctionReturn(0);
+}
+
 } // namespace signorini

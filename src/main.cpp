@@ -16,6 +16,7 @@ static const char help[] =
 #include "signorini/report.h"
 #include "signorini/space.h"
 #include "signorini/stages.h"
+#include "signorini/study.h"
 
 #include <cstdio>
 
@@ -30,6 +31,7 @@ struct Settings {
   PetscInt        errorDegree = 6;
   std::string     summaryFile;
   OutputOptions   output;
+  StudyOptions    study;
 };
 
 static PetscErrorCode ReadSettings(MPI_Comm comm, Settings &s)
@@ -42,6 +44,7 @@ static PetscErrorCode ReadSettings(MPI_Comm comm, Settings &s)
   PetscCall(ErrorOptionsFromCommandLine(comm, s.errorDegree));
   PetscCall(ReportOptionsFromCommandLine(comm, s.summaryFile));
   PetscCall(OutputOptionsFromCommandLine(comm, s.output));
+  PetscCall(StudyOptionsFromCommandLine(comm, s.study));
   PetscFunctionReturn(0);
 }
 
@@ -79,6 +82,16 @@ static PetscErrorCode Run(MPI_Comm comm)
   PetscInt dim;
   PetscCall(DMGetDimension(mesh, &dim));
   PetscCall(ProblemSetUp(comm, dim, s.problem));
+  if (s.study.levels > 0) {
+    // A convergence study instead of a single run: the same scene on nested refinements of this mesh.
+    PetscInt  N0 = s.mesh.file.empty() ? s.mesh.faces[0] << s.mesh.refine : 0;
+    PetscReal h0;
+    if (N0 > 0) h0 = (s.mesh.upper[0] - s.mesh.lower[0]) / N0;
+    else PetscCall(MeshSize(mesh, &h0));
+    PetscCall(RunStudy(mesh, N0, h0, s.problem, s.assembly, s.errorDegree, s.study));
+    PetscCall(DMDestroy(&mesh));
+    PetscFunctionReturn(0);
+  }
   PetscCall(StagePush(Stage::Setup));
   PetscCall(SpaceCreate(mesh, s.element, s.problem, space));
   PetscCall(StagePop(Stage::Setup));

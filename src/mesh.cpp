@@ -245,6 +245,34 @@ static PetscErrorCode PartitionWithMetis(DM dm, PetscInt &edgeCut)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode MeshSize(DM dm, PetscReal *hmax)
+{
+  PetscInt           eStart, eEnd, cdim;
+  Vec                coords;
+  PetscSection       csec;
+  const PetscScalar *x;
+  PetscReal          h = 0;
+  PetscFunctionBeginUser;
+  PetscCall(DMGetCoordinateDim(dm, &cdim));
+  PetscCall(DMPlexGetDepthStratum(dm, 1, &eStart, &eEnd));
+  PetscCall(DMGetCoordinatesLocal(dm, &coords));
+  PetscCall(DMGetCoordinateSection(dm, &csec));
+  PetscCall(VecGetArrayRead(coords, &x));
+  for (PetscInt e = eStart; e < eEnd; ++e) {
+    const PetscInt *cone;
+    PetscInt        o0, o1;
+    PetscCall(DMPlexGetCone(dm, e, &cone));
+    PetscCall(PetscSectionGetOffset(csec, cone[0], &o0));
+    PetscCall(PetscSectionGetOffset(csec, cone[1], &o1));
+    PetscReal d2 = 0;
+    for (PetscInt d = 0; d < cdim; ++d) d2 += PetscSqr(PetscRealPart(x[o1 + d] - x[o0 + d]));
+    h = PetscMax(h, PetscSqrtReal(d2));
+  }
+  PetscCall(VecRestoreArrayRead(coords, &x));
+  PetscCallMPI(MPI_Allreduce(&h, hmax, 1, MPIU_REAL, MPI_MAX, PetscObjectComm((PetscObject)dm)));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode MeshRefine(DM coarse, DM *fine, std::vector<PetscInt> *parent)
 {
   DMPlexTransform tr;

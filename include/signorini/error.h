@@ -15,4 +15,10 @@ PetscErrorCode ErrorOptionsFromCommandLine(MPI_Comm comm, PetscInt &degree);
 // Pushes the Error stage.
 PetscErrorCode ErrorAgainstExact(const Space &space, const Problem &problem, Vec u, PetscInt degree, ErrorNorms &e);
 
+// Error of a coarse solution uH against a reference uh on a nested refinement of the same distributed mesh:
+// parent[c] is the coarse cell (c - cStart) containing fine cell c. Both functions are affine on every fine
+// cell, so the integrals are computed exactly (degree-2 rule on the fine cells). Fully parallel: the
+// refinement is local to each rank, so every fine cell's parent is on the same rank.
+PetscErrorCode ErrorAgainstReference(const Space &coarse, Vec uH, const Space &fine, Vec uh, const std::vector<PetscInt> &parent, ErrorNorms &e);
+
 } // namespace signorini

@@ -37,6 +37,8 @@ struct MeshInfo {
 };
 
 PetscErrorCode MeshOptionsFromCommandLine(MPI_Comm comm, MeshOptions &opts);
+// Longest edge of the mesh (max over ranks).
+PetscErrorCode MeshSize(DM dm, PetscReal *hmax);
 // One uniform (regular) refinement, local to each rank. If `parent` is given, parent[c] is the cell of
 // `coarse` (as c - cStart) that fine cell cStart + c came from: the nested-mesh map used to evaluate a
 // coarse function on the fine mesh.

@@ -1,0 +1,202 @@
+#include "signorini/study.h"
+#include "signorini/report.h"
+
+#include <sys/resource.h>
+
+#include <cmath>
+#include <memory>
+#include <sstream>
+
+namespace signorini {
+
+PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, StudyOptions &o)
+{
+  const char *names[] = {"p1", "cr"};
+  PetscInt    ref     = (PetscInt)o.referenceElement, nel = 2;
+  char        elements[64] = "p1,cr", file[PETSC_MAX_PATH_LEN] = "";
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(comm, "", "Convergence study", "signorini");
+  PetscCall(PetscOptionsInt("-study_levels", "Solve on this many nested mesh levels (0: a single run)", "", o.levels, &o.levels, NULL));
+  PetscCall(PetscOptionsInt("-reference_refine", "Measure errors against a reference this many refinements beyond the finest level (0: none)", "", o.referenceRefine, &o.referenceRefine, NULL));
+  PetscCall(PetscOptionsEList("-reference_space", "Element of the reference solution", "", names, 2, names[ref], &ref, NULL));
+  PetscCall(PetscOptionsString("-study_spaces", "Elements studied, comma separated", "", elements, elements, sizeof elements, NULL));
+  PetscCall(PetscOptionsString("-study_output", "Write the study table as JSON to this file", "", file, file, sizeof file, NULL));
+  PetscOptionsEnd();
+  (void)nel;
+  o.referenceElement = (Element)ref;
+  o.file             = file;
+  o.elements.clear();
+  std::stringstream ss(elements);
+  for (std::string item; std::getline(ss, item, ',');) {
+    if (item == "p1") o.elements.push_back(Element::P1);
+    else if (item == "cr") o.elements.push_back(Element::CR);
+    else SIGNORINI_INPUT_ERROR(comm, "option -study_spaces: unknown element '%s' (p1 or cr)", item.c_str());
+  }
+  if (o.levels < 0) SIGNORINI_INPUT_ERROR(comm, "option -study_levels: must be >= 0, got %" PetscInt_FMT, o.levels);
+  if (o.referenceRefine < 0) SIGNORINI_INPUT_ERROR(comm, "option -reference_refine: must be >= 0, got %" PetscInt_FMT, o.referenceRefine);
+  PetscFunctionReturn(0);
+}
+
+static double PeakRSS(MPI_Comm comm)
+{
+  struct rusage ru;
+  getrusage(RUSAGE_SELF, &ru);
+  double mine = 1024.0 * ru.ru_maxrss, peak = mine;
+  MPI_Allreduce(&mine, &peak, 1, MPI_DOUBLE, MPI_MAX, comm);
+  return peak;
+}
+
+// space -> assembly -> solve on one mesh; the vector u is created here.
+static PetscErrorCode SolveOn(DM mesh, Element element, const Problem &problem, const AssemblyOptions &assembly, Space &space, Vec *u, SolveResult &result, double &solveSeconds)
+{
+  System         sys;
+  PetscLogDouble t0, t1;
+  PetscFunctionBeginUser;
+  PetscCall(SpaceCreate(mesh, element, problem, space));
+  PetscCall(AssembleSystem(space, problem, assembly, sys));
+  PetscCall(DMCreateGlobalVector(space.dm, u));
+  PetscCall(PetscTime(&t0));
+  PetscCall(Solve(space, problem, sys, *u, result));
+  PetscCall(PetscTime(&t1));
+  solveSeconds = t1 - t0;
+  PetscCall(SystemDestroy(sys));
+  PetscFunctionReturn(0);
+}
+
+static PetscReal Rate(PetscReal e0, PetscReal e1, PetscReal h0, PetscReal h1) { return std::log(e0 / e1) / std::log(h0 / h1); }
+
+static PetscErrorCode PrintTable(MPI_Comm comm, const std::vector<StudyRow> &rows)
+{
+  std::ostringstream o;
+  PetscFunctionBeginUser;
+  o << Format("%-4s %6s %10s %9s %9s %12s %6s %12s %6s %12s %6s %6s %6s %9s %9s %9s\n", "elem", "N", "h", "cells", "DOFs", "L2", "rate", "H1semi", "rate", "H1", "rate", "Newton", "KSP", "solve[s]", "total[s]", "peak[MB]");
+  for (size_t i = 0; i < rows.size(); ++i) {
+    const StudyRow   &r   = rows[i];
+    const ErrorNorms &e   = r.hasReference ? r.reference : r.exact;
+    const bool        has = r.hasReference || r.hasExact;
+    std::string       rates[3] = {"", "", ""};
+    if (i > 0 && rows[i - 1].element == r.element && has) {
+      const ErrorNorms &p = rows[i - 1].hasReference ? rows[i - 1].reference : rows[i - 1].exact;
+      rates[0]            = Format("%.2f", (double)Rate(p.l2, e.l2, rows[i - 1].h, r.h));
+      rates[1]            = Format("%.2f", (double)Rate(p.h1semi, e.h1semi, rows[i - 1].h, r.h));
+      rates[2]            = Format("%.2f", (double)Rate(p.h1, e.h1, rows[i - 1].h, r.h));
+    }
+    o << Format("%-4s %6d %10.4g %9d %9d %12.5e %6s %12.5e %6s %12.5e %6s %6d %6d %9.3f %9.3f %9.1f\n", r.element.c_str(), (int)r.N, (double)r.h, (int)r.cells, (int)r.dofs, has ? (double)e.l2 : NAN, rates[0].c_str(), has ? (double)e.h1semi : NAN, rates[1].c_str(),
+                has ? (double)e.h1 : NAN, rates[2].c_str(), (int)r.solve.newtonIts, (int)r.solve.kspIts, r.solveSeconds, r.totalSeconds, r.peakRSS / 1048576.0);
+  }
+  PetscCall(PetscPrintf(comm, "%s", o.str().c_str()));
+  PetscFunctionReturn(0);
+}
+
+static std::string JsonErrors(const ErrorNorms &e) { return Format("{\"l2\": %.17g, \"h1_semi\": %.17g, \"h1\": %.17g}", (double)e.l2, (double)e.h1semi, (double)e.h1); }
+
+static PetscErrorCode WriteJSON(MPI_Comm comm, const std::string &file, const std::string &scene, const StudyOptions &o, PetscInt refN, PetscInt refDofs, const std::vector<StudyRow> &rows)
+{
+  std::ostringstream j;
+  PetscMPIInt        size;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  j << "{\n  \"scene\": \"" << scene << "\",\n  \"ranks\": " << size << ",\n";
+  if (o.referenceRefine > 0) j << "  \"reference\": {\"element\": \"" << ElementName(o.referenceElement) << "\", \"N\": " << refN << ", \"dofs\": " << refDofs << "},\n";
+  j << "  \"rows\": [\n";
+  for (size_t i = 0; i < rows.size(); ++i) {
+    const StudyRow &r = rows[i];
+    j << "    {\"element\": \"" << r.element << "\", \"level\": " << r.level << ", \"N\": " << r.N << Format(", \"h\": %.17g", (double)r.h) << ", \"cells\": " << r.cells << ", \"dofs\": " << r.dofs;
+    j << ", \"newton_iterations\": " << r.solve.newtonIts << ", \"ksp_iterations\": " << r.solve.kspIts << ", \"converged_reason\": \"" << r.solve.reason << "\"";
+    j << ", \"active\": " << r.solve.active << Format(", \"energy\": %.17g", (double)r.solve.energy);
+    if (r.hasExact) j << ", \"error_exact\": " << JsonErrors(r.exact);
+    if (r.hasReference) j << ", \"error_reference\": " << JsonErrors(r.reference);
+    j << Format(", \"solve_seconds\": %.6g, \"total_seconds\": %.6g, \"peak_rss_bytes\": %.0f}", r.solveSeconds, r.totalSeconds, r.peakRSS) << (i + 1 < rows.size() ? "," : "") << "\n";
+  }
+  j << "  ]\n}\n";
+  PetscCall(WriteFileAtomically(comm, file, j.str()));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode RunStudy(DM base, PetscInt N0, PetscReal h0, Problem &problem, const AssemblyOptions &assembly, PetscInt errorDegree, const StudyOptions &o)
+{
+  MPI_Comm                           comm = PetscObjectComm((PetscObject)base);
+  const PetscInt                     finest = o.levels - 1 + o.referenceRefine;
+  std::vector<DM>                    levels(finest + 1, nullptr);
+  std::vector<std::vector<PetscInt>> parent(finest + 1);
+  std::vector<double>                meshSeconds(finest + 1, 0.0);
+  std::vector<StudyRow>              rows;
+  std::vector<std::unique_ptr<Space>> spaces;
+  std::vector<Vec>                   solutions;
+  PetscLogDouble                     t0, t1;
+  PetscFunctionBeginUser;
+  if (!problem.HasExact() && o.referenceRefine == 0) SIGNORINI_INPUT_ERROR(comm, "option -reference_refine: the scene has no exact solution, so the study needs a reference (-reference_refine m > 0)");
+  PetscCall(PetscObjectReference((PetscObject)base));
+  levels[0] = base;
+  for (PetscInt l = 1; l <= finest; ++l) {
+    PetscCall(PetscTime(&t0));
+    PetscCall(MeshRefine(levels[l - 1], &levels[l], &parent[l]));
+    PetscCall(PetscTime(&t1));
+    meshSeconds[l] = meshSeconds[l - 1] + (t1 - t0);
+  }
+
+  // Coarse solves first, so each row's peak memory is not the reference's.
+  for (Element e : o.elements) {
+    for (PetscInt l = 0; l < o.levels; ++l) {
+      StudyRow r;
+      Vec      u;
+      auto     space = std::make_unique<Space>();
+      PetscCall(PetscTime(&t0));
+      PetscCall(SolveOn(levels[l], e, problem, assembly, *space, &u, r.solve, r.solveSeconds));
+      PetscCall(PetscTime(&t1));
+      r.element      = ElementName(e);
+      r.level        = l;
+      r.N            = N0 << l;
+      r.h            = h0 / (1 << l);
+      r.cells        = 0;
+      PetscInt local = space->NumCells();
+      PetscCallMPI(MPI_Allreduce(&local, &r.cells, 1, MPIU_INT, MPI_SUM, comm));
+      r.dofs         = space->numGlobal;
+      r.totalSeconds = meshSeconds[l] + (t1 - t0);
+      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &r.solveSeconds, 1, MPI_DOUBLE, MPI_MAX, comm));
+      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &r.totalSeconds, 1, MPI_DOUBLE, MPI_MAX, comm));
+      r.peakRSS = PeakRSS(comm);
+      if (problem.HasExact()) {
+        PetscCall(ErrorAgainstExact(*space, problem, u, errorDegree, r.exact));
+        r.hasExact = true;
+      }
+      rows.push_back(r);
+      spaces.push_back(std::move(space));
+      solutions.push_back(u);
+    }
+  }
+
+  PetscInt refDofs = 0;
+  if (o.referenceRefine > 0) {
+    Space       ref;
+    Vec         uref;
+    SolveResult rr;
+    double      seconds;
+    PetscCall(SolveOn(levels[finest], o.referenceElement, problem, assembly, ref, &uref, rr, seconds));
+    refDofs = ref.numGlobal;
+    PetscCall(PetscPrintf(comm, "reference: %s on level %d (N = %d), %d DOFs, %d Newton / %d KSP iterations, %.2f s\n", ElementName(o.referenceElement), (int)finest, (int)(N0 << finest), (int)refDofs, (int)rr.newtonIts, (int)rr.kspIts, seconds));
+    // parent maps from the reference level down to each study level, composed once per level
+    std::vector<PetscInt> map(ref.NumCells());
+    for (PetscInt c = 0; c < ref.NumCells(); ++c) map[c] = c;
+    for (PetscInt l = finest; l >= 0; --l) {
+      for (size_t i = 0; i < rows.size(); ++i)
+        if (rows[i].level == l) {
+          PetscCall(ErrorAgainstReference(*spaces[i], solutions[i], ref, uref, map, rows[i].reference));
+          rows[i].hasReference = true;
+        }
+      if (l > 0)
+        for (PetscInt &c : map) c = parent[l][c];
+    }
+    PetscCall(VecDestroy(&uref));
+    PetscCall(SpaceDestroy(ref));
+  }
+  PetscCall(PrintTable(comm, rows));
+  if (!o.file.empty()) PetscCall(WriteJSON(comm, o.file, problem.scene, o, N0 << finest, refDofs, rows));
+
+  for (Vec &u : solutions) PetscCall(VecDestroy(&u));
+  for (auto &s : spaces) PetscCall(SpaceDestroy(*s));
+  for (DM &dm : levels) PetscCall(DMDestroy(&dm));
+  PetscFunctionReturn(0);
+}
+
+} // namespace signorini
