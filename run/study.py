@@ -1,0 +1,79 @@
+"""Convergence study of a scene with both elements: one table of errors, rates, iterations, times and memory,
+written as CSV and JSON, with two plots (error against h, and error against run time).
+
+  run/study SCENE [--ranks P] [--out DIR] [signorini options...]
+
+  run/study manufactured-2d -box_faces 4 -study_levels 5
+  run/study paper-5.1 -box_faces 2 -study_levels 6 -reference_refine 3 -load_quadrature centroid
+
+Against the exact solution when the scene has one; against a reference solution (-reference_refine m,
+-reference_space p1|cr) otherwise. Extra options go to signorini (see signorini -help)."""
+import argparse
+import csv
+import json
+import os
+import subprocess
+import sys
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+sys.path.insert(0, HERE)
+
+
+def run_study(scene, options, out_dir, ranks=1, quiet=False):
+    """Runs signorini in study mode; returns the study dict and writes study.json/.csv and the plots."""
+    import plot
+
+    os.makedirs(out_dir, exist_ok=True)
+    json_path = os.path.join(out_dir, "study.json")
+    cmd = [os.path.join(ROOT, "build", "signorini"), "-options_file", os.path.join(ROOT, "petsc-options", scene)]
+    if "-study_levels" not in options:
+        cmd += ["-study_levels", "5"]
+    cmd += list(options) + ["-study_output", json_path]
+    if ranks > 1:
+        cmd = ["mpirun", "--oversubscribe", "-n", str(ranks)] + cmd
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    p = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    if p.returncode != 0:
+        sys.stderr.write(p.stdout + p.stderr)
+        sys.exit("run/study: signorini failed (exit %d)" % p.returncode)
+    if not quiet:
+        sys.stdout.write(p.stdout)
+    with open(json_path) as f:
+        study = json.load(f)
+    write_csv(study, os.path.join(out_dir, "study.csv"))
+    title = "%s (%d rank%s)" % (study["scene"], study["ranks"], "s" if study["ranks"] > 1 else "")
+    plot.plot_error_vs_h(study, os.path.join(out_dir, "error-vs-h.png"), title)
+    plot.plot_work_precision(study, os.path.join(out_dir, "error-vs-time.png"), title)
+    return study
+
+
+def write_csv(study, path):
+    fields = ["element", "N", "h", "cells", "dofs", "l2", "h1_semi", "h1", "newton_iterations", "ksp_iterations",
+              "solve_seconds", "total_seconds", "peak_rss_bytes", "error_against"]
+    tmp = path + ".tmp"
+    with open(tmp, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields)
+        w.writeheader()
+        for r in study["rows"]:
+            key = "error_reference" if "error_reference" in r else "error_exact"
+            row = {k: r[k] for k in fields if k in r}
+            row.update(r.get(key, {}))
+            row["error_against"] = key.split("_")[1]
+            w.writerow(row)
+    os.replace(tmp, path)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("scene", help="options file in petsc-options/")
+    ap.add_argument("--ranks", type=int, default=1)
+    ap.add_argument("--out", default=None, help="output folder (default results/SCENE)")
+    args, options = ap.parse_known_args()
+    out = args.out or os.path.join(ROOT, "results", args.scene)
+    run_study(args.scene, options, out, args.ranks)
+    print("wrote %s/study.json, study.csv, error-vs-h.png, error-vs-time.png" % out)
+
+
+if __name__ == "__main__":
+    main()
