@@ -75,7 +75,9 @@ def main():
     print("\n== the same study with the accurate load rule (degree-4 quadrature), for comparison")
     out2 = os.path.join(ROOT, "results", "paper-5.1-accurate")
     run_study("paper-5.1", base, out2, args.ranks)
-    print("\nTables and plots: %s/ and %s/ (study.csv, study.json, error-vs-h.png, error-vs-time.png)" % (out1, out2))
+    print("\nTables and plots: %s/ and %s/" % (out1, out2))
+    print("  study.csv, study.json: the tables; error-vs-h.png: convergence; error-vs-time.png: error against run time;")
+    print("  solution.png: u_h on N = 64; contact.png: u_h and the contact pressure along Gamma_C with the critical points")
     sys.exit(0 if ok else 1)
 
 

@@ -60,3 +60,74 @@ def plot_work_precision(study, path, title):
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def plot_solution(h5_files, path, title):
+    """u_h over a 2D domain, one panel per element (vertex values from the HDF5 output). Returns False in 3D."""
+    import h5py
+
+    panels = []
+    for element, f in h5_files.items():
+        with h5py.File(f, "r") as h5:
+            X = h5["/geometry/vertices"][:]
+            if X.shape[1] != 2:
+                return False
+            panels.append((element, X, h5["/viz/topology/cells"][:], h5["/vertex_fields/u_vertex_value"][:]))
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 4.4), squeeze=False)
+    for ax, (element, X, cells, u) in zip(axes[0], panels):
+        t = ax.tripcolor(X[:, 0], X[:, 1], cells, u, shading="gouraud", cmap="viridis")
+        ax.set_aspect("equal")
+        ax.set_title("%s: u_h" % NAMES.get(element, element))
+        fig.colorbar(t, ax=ax, shrink=0.85)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return True
+
+
+def _read_profile(path):
+    import csv
+
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    return {k: [float(r[k]) for r in rows] for k in rows[0]} if rows else None
+
+
+def critical_points(s, gap):
+    """Where the contact region begins and ends: midpoints between neighbouring DOFs where u = psi switches."""
+    scale = max(1.0, max(abs(g) for g in gap))
+    active = [g <= 1e-8 * scale for g in gap]
+    return [0.5 * (s[i] + s[i + 1]) for i in range(len(s) - 1) if active[i] != active[i + 1]]
+
+
+def plot_contact(csv_files, path, title):
+    """u_h, psi and the contact pressure kappa du/dn along a straight Gamma_C (2D), both elements on one plot,
+    with the critical points (ends of the contact region) marked."""
+    fig, (ax_u, ax_p) = plt.subplots(2, 1, figsize=(7, 6.4), sharex=True)
+    for n, (element, f) in enumerate(csv_files.items()):
+        p = _read_profile(f)
+        if p is None or "z" in p:
+            plt.close(fig)
+            return False
+        # arc length along Gamma_C: x for a horizontal part, y for a vertical one
+        s = p["x"] if max(p["x"]) - min(p["x"]) >= max(p["y"]) - min(p["y"]) else p["y"]
+        m = MARKERS.get(element, "^")
+        ax_u.plot(s, p["u"], m + "-", ms=3, label="%s: u_h" % NAMES.get(element, element))
+        ax_p.plot(s, p["pressure"], m + "-", ms=3, label="%s: pressure" % NAMES.get(element, element))
+        if n == 0:
+            ax_u.plot(s, p["psi"], "k--", lw=1, label="obstacle psi")
+        for k, x in enumerate(critical_points(s, [a - b for a, b in zip(p["u"], p["psi"])])):
+            for ax in (ax_u, ax_p):
+                ax.axvline(x, color="C%d" % n, ls=":", lw=1.2, label=("%s: critical point" % element) if (k == 0 and ax is ax_u) else None)
+    ax_u.set_ylabel("u_h on Gamma_C")
+    ax_p.set_ylabel("kappa du/dn (reaction / boundary measure)")
+    ax_p.set_xlabel("position along Gamma_C")
+    ax_u.set_title(title)
+    for ax in (ax_u, ax_p):
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return True

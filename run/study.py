@@ -29,7 +29,8 @@ def run_study(scene, options, out_dir, ranks=1, quiet=False):
     cmd = [os.path.join(ROOT, "build", "signorini"), "-options_file", os.path.join(ROOT, "petsc-options", scene)]
     if "-study_levels" not in options:
         cmd += ["-study_levels", "5"]
-    cmd += list(options) + ["-study_output", json_path]
+    profiles = os.path.join(out_dir, "finest")
+    cmd += list(options) + ["-study_output", json_path, "-study_profiles", profiles]
     if ranks > 1:
         cmd = ["mpirun", "--oversubscribe", "-n", str(ranks)] + cmd
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
@@ -45,6 +46,14 @@ def run_study(scene, options, out_dir, ranks=1, quiet=False):
     title = "%s (%d rank%s)" % (study["scene"], study["ranks"], "s" if study["ranks"] > 1 else "")
     plot.plot_error_vs_h(study, os.path.join(out_dir, "error-vs-h.png"), title)
     plot.plot_work_precision(study, os.path.join(out_dir, "error-vs-time.png"), title)
+    # the free boundary, for 2D scenes with a contact part: finest level of each element
+    elements = sorted({r["element"] for r in study["rows"]})
+    finest = max(r["N"] for r in study["rows"])
+    h5 = {e: "%s-%s.h5" % (profiles, e) for e in elements}
+    plot.plot_solution(h5, os.path.join(out_dir, "solution.png"), "%s, N = %d" % (study["scene"], finest))
+    contact = {e: "%s-%s-contact.csv" % (profiles, e) for e in elements}
+    if all(os.path.exists(f) for f in contact.values()):
+        plot.plot_contact(contact, os.path.join(out_dir, "contact.png"), "%s: the free boundary on Gamma_C, N = %d" % (study["scene"], finest))
     return study
 
 
@@ -72,7 +81,7 @@ def main():
     args, options = ap.parse_known_args()
     out = args.out or os.path.join(ROOT, "results", args.scene)
     run_study(args.scene, options, out, args.ranks)
-    print("wrote %s/study.json, study.csv, error-vs-h.png, error-vs-time.png" % out)
+    print("wrote in %s: %s" % (out, ", ".join(sorted(f for f in os.listdir(out) if f.endswith((".json", ".csv", ".png"))))))
 
 
 if __name__ == "__main__":

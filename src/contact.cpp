@@ -1,4 +1,5 @@
 #include "signorini/contact.h"
+#include "signorini/report.h"
 #include "signorini/stages.h"
 
 #include <algorithm>
@@ -178,6 +179,77 @@ static PetscErrorCode MeasureKKT(const Space &space, const System &sys, Vec u, V
   PetscInt        active = 0;
   for (PetscReal g : gaps) active += g <= tol;
   PetscCallMPI(MPI_Allreduce(&active, &r.active, 1, MPIU_INT, MPI_SUM, comm));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode WriteContactProfile(const Space &space, const Problem &problem, const System &sys, Vec u, const std::string &file)
+{
+  MPI_Comm           comm = PetscObjectComm((PetscObject)u);
+  Vec                lower, measure, res, coords[3], loc;
+  const PetscScalar *ua, *la, *ma, *ra, *xa[3];
+  PetscScalar       *a;
+  PetscMPIInt        rank, size;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  PetscCall(VecDuplicate(u, &lower));
+  PetscCall(VecDuplicate(u, &measure));
+  PetscCall(VecDuplicate(u, &res));
+  PetscCall(ContactVectors(space, problem, lower, measure));
+  PetscCall(MatMult(sys.A, u, res));
+  PetscCall(VecAXPY(res, -1.0, sys.b));
+  // DOF coordinates as global vectors, so they can be read at owned indices
+  PetscCall(DMGetLocalVector(space.dm, &loc));
+  for (PetscInt d = 0; d < space.dim; ++d) {
+    PetscCall(VecDuplicate(u, &coords[d]));
+    PetscCall(VecGetArray(loc, &a));
+    for (PetscInt i = 0; i < space.numLocal; ++i) a[i] = space.dofPoint[i * space.dim + d];
+    PetscCall(VecRestoreArray(loc, &a));
+    PetscCall(DMLocalToGlobal(space.dm, loc, INSERT_VALUES, coords[d]));
+    PetscCall(VecGetArrayRead(coords[d], &xa[d]));
+  }
+  PetscCall(DMRestoreLocalVector(space.dm, &loc));
+  PetscCall(VecGetArrayRead(u, &ua));
+  PetscCall(VecGetArrayRead(lower, &la));
+  PetscCall(VecGetArrayRead(measure, &ma));
+  PetscCall(VecGetArrayRead(res, &ra));
+  const int           ncol = (int)space.dim + 3;
+  std::vector<double> mine;
+  for (PetscInt i : space.contactOwned) {
+    for (PetscInt d = 0; d < space.dim; ++d) mine.push_back(PetscRealPart(xa[d][i]));
+    mine.push_back(PetscRealPart(ua[i]));
+    mine.push_back(PetscRealPart(la[i]));
+    mine.push_back(PetscRealPart(ra[i]) / PetscRealPart(ma[i]));
+  }
+  for (PetscInt d = 0; d < space.dim; ++d) {
+    PetscCall(VecRestoreArrayRead(coords[d], &xa[d]));
+    PetscCall(VecDestroy(&coords[d]));
+  }
+  PetscCall(VecRestoreArrayRead(u, &ua));
+  PetscCall(VecRestoreArrayRead(lower, &la));
+  PetscCall(VecRestoreArrayRead(measure, &ma));
+  PetscCall(VecRestoreArrayRead(res, &ra));
+  PetscCall(VecDestroy(&lower));
+  PetscCall(VecDestroy(&measure));
+  PetscCall(VecDestroy(&res));
+  // Gather on rank 0: Gamma_C is a lower-dimensional part of the mesh, small enough to write from one rank.
+  int              n = (int)mine.size();
+  std::vector<int> counts(size), displs(size, 0);
+  PetscCallMPI(MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, comm));
+  for (int p = 1; p < size; ++p) displs[p] = displs[p - 1] + counts[p - 1];
+  std::vector<double> all(rank == 0 ? displs[size - 1] + counts[size - 1] : 0);
+  PetscCallMPI(MPI_Gatherv(mine.data(), n, MPI_DOUBLE, all.data(), counts.data(), displs.data(), MPI_DOUBLE, 0, comm));
+  std::vector<std::vector<double>> rows;
+  for (size_t k = 0; k + ncol <= all.size(); k += ncol) rows.emplace_back(all.begin() + k, all.begin() + k + ncol);
+  std::sort(rows.begin(), rows.end());
+  static const char *axes[] = {"x", "y", "z"};
+  std::string        text;
+  for (PetscInt d = 0; d < space.dim; ++d) text += std::string(axes[d]) + ",";
+  text += "u,psi,pressure\n";
+  for (const auto &r : rows) {
+    for (int k = 0; k < ncol; ++k) text += Format(k + 1 < ncol ? "%.17g," : "%.17g\n", r[k]);
+  }
+  PetscCall(WriteFileAtomically(comm, file, text));
   PetscFunctionReturn(0);
 }
 

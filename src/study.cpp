@@ -1,4 +1,5 @@
 #include "signorini/study.h"
+#include "signorini/output.h"
 #include "signorini/report.h"
 
 #include <sys/resource.h>
@@ -13,7 +14,7 @@ PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, StudyOptions &o)
 {
   const char *names[] = {"p1", "cr"};
   PetscInt    ref     = (PetscInt)o.referenceElement, nel = 2;
-  char        elements[64] = "p1,cr", file[PETSC_MAX_PATH_LEN] = "";
+  char        elements[64] = "p1,cr", file[PETSC_MAX_PATH_LEN] = "", profiles[PETSC_MAX_PATH_LEN] = "";
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Convergence study", "signorini");
   PetscCall(PetscOptionsInt("-study_levels", "Solve on this many nested mesh levels (0: a single run)", "", o.levels, &o.levels, NULL));
@@ -21,10 +22,12 @@ PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, StudyOptions &o)
   PetscCall(PetscOptionsEList("-reference_space", "Element of the reference solution", "", names, 2, names[ref], &ref, NULL));
   PetscCall(PetscOptionsString("-study_spaces", "Elements studied, comma separated", "", elements, elements, sizeof elements, NULL));
   PetscCall(PetscOptionsString("-study_output", "Write the study table as JSON to this file", "", file, file, sizeof file, NULL));
+  PetscCall(PetscOptionsString("-study_profiles", "On the finest level write PREFIX-<element>.h5 and PREFIX-<element>-contact.csv", "", profiles, profiles, sizeof profiles, NULL));
   PetscOptionsEnd();
   (void)nel;
   o.referenceElement = (Element)ref;
   o.file             = file;
+  o.profiles         = profiles;
   o.elements.clear();
   std::stringstream ss(elements);
   for (std::string item; std::getline(ss, item, ',');) {
@@ -47,7 +50,8 @@ static double PeakRSS(MPI_Comm comm)
 }
 
 // space -> assembly -> solve on one mesh; the vector u is created here.
-static PetscErrorCode SolveOn(DM mesh, Element element, const Problem &problem, const AssemblyOptions &assembly, Space &space, Vec *u, SolveResult &result, double &solveSeconds)
+// With a profile prefix, also writes PREFIX-<element>.h5/.xmf (the solution) and PREFIX-<element>-contact.csv.
+static PetscErrorCode SolveOn(DM mesh, Element element, const Problem &problem, const AssemblyOptions &assembly, Space &space, Vec *u, SolveResult &result, double &solveSeconds, const std::string &profile = "")
 {
   System         sys;
   PetscLogDouble t0, t1;
@@ -59,6 +63,11 @@ static PetscErrorCode SolveOn(DM mesh, Element element, const Problem &problem, 
   PetscCall(Solve(space, problem, sys, *u, result));
   PetscCall(PetscTime(&t1));
   solveSeconds = t1 - t0;
+  if (!profile.empty()) {
+    const std::string base = profile + "-" + ElementName(element);
+    PetscCall(WriteSolution(space, *u, OutputOptions{base + ".h5"}));
+    if (problem.HasContact()) PetscCall(WriteContactProfile(space, problem, sys, *u, base + "-contact.csv"));
+  }
   PetscCall(SystemDestroy(sys));
   PetscFunctionReturn(0);
 }
@@ -142,7 +151,7 @@ PetscErrorCode RunStudy(DM base, PetscInt N0, PetscReal h0, Problem &problem, co
       Vec      u;
       auto     space = std::make_unique<Space>();
       PetscCall(PetscTime(&t0));
-      PetscCall(SolveOn(levels[l], e, problem, assembly, *space, &u, r.solve, r.solveSeconds));
+      PetscCall(SolveOn(levels[l], e, problem, assembly, *space, &u, r.solve, r.solveSeconds, l == o.levels - 1 ? o.profiles : std::string()));
       PetscCall(PetscTime(&t1));
       r.element      = ElementName(e);
       r.level        = l;

@@ -86,11 +86,17 @@ with tempfile.TemporaryDirectory() as tmp:
                        capture_output=True, text=True, env=env)
     c.check(p.returncode == 0, "run/study exit status %d %s" % (p.returncode, p.stderr[-300:]))
     files = sorted(os.listdir(tmp))
-    c.check(files == ["error-vs-h.png", "error-vs-time.png", "study.csv", "study.json"], "run/study wrote %s" % files)
+    want = ["contact.png", "error-vs-h.png", "error-vs-time.png", "solution.png", "study.csv", "study.json"]
+    c.check(all(f in files for f in want) and not any(f.endswith(".tmp") for f in files), "run/study wrote %s" % files)
+    # the free boundary: the contact profile of the finest level has active and inactive DOFs on Gamma_C
+    with open(os.path.join(tmp, "finest-cr-contact.csv")) as f:
+        prof = [l.split(",") for l in f.read().splitlines()[1:]]
+    gaps = [float(r[2]) - float(r[3]) for r in prof]
+    c.check(len(prof) == 32 and min(gaps) <= 1e-10 and max(gaps) > 1e-3, "contact profile: %d DOFs, some active, some not" % len(prof))
     with open(os.path.join(tmp, "study.csv")) as f:
         lines = f.read().splitlines()
     c.check(len(lines) == 1 + 2 * 3 and lines[0].startswith("element,N,h"), "study.csv has a header and 6 rows")
-    for name in ["error-vs-h.png", "error-vs-time.png"]:
+    for name in ["error-vs-h.png", "error-vs-time.png", "solution.png", "contact.png"]:
         with open(os.path.join(tmp, name), "rb") as f:
             c.check(f.read(8) == b"\x89PNG\r\n\x1a\n", "%s is a PNG" % name)
     with open(os.path.join(tmp, "study.json")) as f:

@@ -28,6 +28,9 @@ struct SolveResult {
 
 // With -help: lists the SNES, KSP and PC options of the default solver without solving anything.
 PetscErrorCode SolverOptionsHelp(MPI_Comm comm);
+// Writes u_h, psi and the contact pressure at every contact DOF as CSV (x, y[, z], u, psi, pressure),
+// sorted by coordinates, gathered on rank 0: the free boundary seen along Gamma_C.
+PetscErrorCode WriteContactProfile(const Space &space, const Problem &problem, const System &sys, Vec u, const std::string &file);
 // u: global vector of the space, overwritten with the solution. Pushes the Solve stage.
 PetscErrorCode Solve(const Space &space, const Problem &problem, const System &sys, Vec u, SolveResult &result);
 

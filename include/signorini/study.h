@@ -18,7 +18,8 @@ struct StudyOptions {
   PetscInt             referenceRefine = 0; // refinements of the finest study level for the reference (0: none)
   Element              referenceElement = Element::P1;
   std::vector<Element> elements = {Element::P1, Element::CR};
-  std::string          file; // JSON output
+  std::string          file;     // JSON output
+  std::string          profiles; // prefix of the finest level's solution (HDF5) and contact profile (CSV)
 };
 
 PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, StudyOptions &o);
