@@ -2,12 +2,14 @@
 // "PASS name" or "FAIL name: details", and Finish() prints "N passed, M failed" and gives the exit code.
 #pragma once
 
-#include <petscsys.h>
+#include <petscdmplex.h>
 
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
+#include <array>
 #include <string>
+#include <vector>
 
 namespace unit {
 
@@ -51,5 +53,37 @@ public:
 private:
   int passed_ = 0, failed_ = 0;
 };
+
+// Coordinates of the vertices in the closure of point p (closure order).
+inline PetscErrorCode PointVertices(DM dm, PetscInt p, std::vector<std::array<double, 3>> &out)
+{
+  PetscInt           vStart, vEnd, n, *closure = nullptr;
+  Vec                coords;
+  DM                 cdm;
+  PetscSection       csec;
+  const PetscScalar *xa;
+  PetscInt           dim;
+  PetscFunctionBeginUser;
+  out.clear();
+  PetscCall(DMGetDimension(dm, &dim));
+  PetscCall(DMPlexGetDepthStratum(dm, 0, &vStart, &vEnd));
+  PetscCall(DMGetCoordinatesLocal(dm, &coords));
+  PetscCall(DMGetCoordinateDM(dm, &cdm));
+  PetscCall(DMGetLocalSection(cdm, &csec));
+  PetscCall(VecGetArrayRead(coords, &xa));
+  PetscCall(DMPlexGetTransitiveClosure(dm, p, PETSC_TRUE, &n, &closure));
+  for (PetscInt i = 0; i < n; ++i) {
+    const PetscInt q = closure[2 * i];
+    if (q < vStart || q >= vEnd) continue;
+    PetscInt off;
+    PetscCall(PetscSectionGetOffset(csec, q, &off));
+    std::array<double, 3> x{0, 0, 0};
+    for (PetscInt d = 0; d < dim; ++d) x[d] = PetscRealPart(xa[off + d]);
+    out.push_back(x);
+  }
+  PetscCall(DMPlexRestoreTransitiveClosure(dm, p, PETSC_TRUE, &n, &closure));
+  PetscCall(VecRestoreArrayRead(coords, &xa));
+  PetscFunctionReturn(0);
+}
 
 } // namespace unit

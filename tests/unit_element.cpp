@@ -114,38 +114,6 @@ static void TestHandCells(unit::Checker &ck)
 // ---------------------------------------------------------------------------------------------------
 // Part 2: spaces on box meshes.
 
-// Coordinates of the vertices in the closure of point p, in closure order.
-static PetscErrorCode PointVertices(DM dm, PetscInt p, std::vector<std::array<double, 3>> &out)
-{
-  PetscInt           vStart, vEnd, n, *closure = nullptr;
-  Vec                coords;
-  DM                 cdm;
-  PetscSection       csec;
-  const PetscScalar *xa;
-  PetscInt           dim;
-  PetscFunctionBeginUser;
-  out.clear();
-  PetscCall(DMGetDimension(dm, &dim));
-  PetscCall(DMPlexGetDepthStratum(dm, 0, &vStart, &vEnd));
-  PetscCall(DMGetCoordinatesLocal(dm, &coords));
-  PetscCall(DMGetCoordinateDM(dm, &cdm));
-  PetscCall(DMGetLocalSection(cdm, &csec));
-  PetscCall(VecGetArrayRead(coords, &xa));
-  PetscCall(DMPlexGetTransitiveClosure(dm, p, PETSC_TRUE, &n, &closure));
-  for (PetscInt i = 0; i < n; ++i) {
-    const PetscInt q = closure[2 * i];
-    if (q < vStart || q >= vEnd) continue;
-    PetscInt off;
-    PetscCall(PetscSectionGetOffset(csec, q, &off));
-    std::array<double, 3> x{0, 0, 0};
-    for (PetscInt d = 0; d < dim; ++d) x[d] = PetscRealPart(xa[off + d]);
-    out.push_back(x);
-  }
-  PetscCall(DMPlexRestoreTransitiveClosure(dm, p, PETSC_TRUE, &n, &closure));
-  PetscCall(VecRestoreArrayRead(coords, &xa));
-  PetscFunctionReturn(0);
-}
-
 static double Det3(const double a[3], const double b[3], const double c[3])
 {
   return a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0]);
@@ -262,7 +230,7 @@ static PetscErrorCode TestSpace(unit::Checker &ck, const SpaceCase &sc)
   std::vector<std::array<double, 3>> cellV, faceV;
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
     const PetscInt cell = space.cStart + c;
-    PetscCall(PointVertices(space.dm, cell, cellV));
+    PetscCall(unit::PointVertices(space.dm, cell, cellV));
     // The space's vertex table holds this cell's vertices (in some order).
     for (PetscInt k = 0; k < nb; ++k) {
       bool found = false;
@@ -309,7 +277,7 @@ static PetscErrorCode TestSpace(unit::Checker &ck, const SpaceCase &sc)
         pointsMsg = Format("cell %d DOF %d (offset %d) is point %d, not a %s of the cell", (int)c, (int)i, (int)dof, (int)p, sc.element == Element::CR ? "face" : "vertex");
       }
       if (!inCell) continue;
-      PetscCall(PointVertices(space.dm, p, faceV));
+      PetscCall(unit::PointVertices(space.dm, p, faceV));
       for (PetscInt d = 0; d < dim; ++d) {
         where[i][d] = 0;
         for (const auto &v : faceV) where[i][d] += v[d] / faceV.size();
@@ -374,7 +342,7 @@ static PetscErrorCode TestSpace(unit::Checker &ck, const SpaceCase &sc)
   PetscInt    nContact = 0, nDirichlet = 0;
   for (PetscInt i = 0; i < space.numLocal; ++i) {
     std::vector<std::array<double, 3>> pv;
-    PetscCall(PointVertices(space.dm, pointOf[i], pv));
+    PetscCall(unit::PointVertices(space.dm, pointOf[i], pv));
     bool onBottom = true, onDir = true;
     for (const auto &v : pv) {
       onBottom = onBottom && v[dim - 1] == sc.mesh.lower[dim - 1];

@@ -15,36 +15,6 @@ struct MeshCase {
   MeshOptions opts;
 };
 
-static PetscErrorCode Coordinates(DM dm, PetscInt p, std::vector<std::array<double, 3>> &out)
-{
-  PetscInt           vStart, vEnd, n, *closure = nullptr, dim;
-  Vec                coords;
-  DM                 cdm;
-  PetscSection       csec;
-  const PetscScalar *xa;
-  PetscFunctionBeginUser;
-  out.clear();
-  PetscCall(DMGetDimension(dm, &dim));
-  PetscCall(DMPlexGetDepthStratum(dm, 0, &vStart, &vEnd));
-  PetscCall(DMGetCoordinatesLocal(dm, &coords));
-  PetscCall(DMGetCoordinateDM(dm, &cdm));
-  PetscCall(DMGetLocalSection(cdm, &csec));
-  PetscCall(VecGetArrayRead(coords, &xa));
-  PetscCall(DMPlexGetTransitiveClosure(dm, p, PETSC_TRUE, &n, &closure));
-  for (PetscInt i = 0; i < n; ++i) {
-    const PetscInt q = closure[2 * i];
-    if (q < vStart || q >= vEnd) continue;
-    PetscInt off;
-    PetscCall(PetscSectionGetOffset(csec, q, &off));
-    std::array<double, 3> x{0, 0, 0};
-    for (PetscInt d = 0; d < dim; ++d) x[d] = PetscRealPart(xa[off + d]);
-    out.push_back(x);
-  }
-  PetscCall(DMPlexRestoreTransitiveClosure(dm, p, PETSC_TRUE, &n, &closure));
-  PetscCall(VecRestoreArrayRead(coords, &xa));
-  PetscFunctionReturn(0);
-}
-
 static PetscErrorCode TestMesh(unit::Checker &ck, const MeshCase &mc)
 {
   const MeshOptions &o   = mc.opts;
@@ -88,7 +58,7 @@ static PetscErrorCode TestMesh(unit::Checker &ck, const MeshCase &mc)
     DMPolytopeType ct;
     PetscCall(DMPlexGetCellType(dm, c, &ct));
     typesOk = typesOk && ct == (dim == 2 ? DM_POLYTOPE_TRIANGLE : DM_POLYTOPE_TETRAHEDRON);
-    PetscCall(Coordinates(dm, c, X));
+    PetscCall(unit::PointVertices(dm, c, X));
     double e[3][3] = {{0}};
     for (PetscInt a = 0; a < dim; ++a)
       for (PetscInt b = 0; b < dim; ++b) e[a][b] = X[a + 1][b] - X[0][b];
@@ -134,7 +104,7 @@ static PetscErrorCode TestMesh(unit::Checker &ck, const MeshCase &mc)
       for (PetscInt j = 0; j < n; ++j) {
         if (pts[j] < fStart || pts[j] >= fEnd) continue;
         ++count;
-        PetscCall(Coordinates(dm, pts[j], X));
+        PetscCall(unit::PointVertices(dm, pts[j], X));
         double centroid[3] = {0, 0, 0};
         for (const auto &x : X)
           for (PetscInt q = 0; q < dim; ++q) centroid[q] += x[q] / X.size();
@@ -177,7 +147,7 @@ static PetscErrorCode TestMesh(unit::Checker &ck, const MeshCase &mc)
     bool         ok        = true;
     std::string  msg;
     for (PetscInt e = fStart; e < fEnd; ++e) {
-      PetscCall(Coordinates(dm, e, X));
+      PetscCall(unit::PointVertices(dm, e, X));
       const double dx = X[1][0] - X[0][0], dy = X[1][1] - X[0][1];
       if (std::fabs(dx) < 1e-12 * hx || std::fabs(dy) < 1e-12 * hy) continue;
       PetscInt nsupp;
