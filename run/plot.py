@@ -21,13 +21,29 @@ def error_key(rows):
     return "error_reference" if any("error_reference" in r for r in rows) else "error_exact"
 
 
+def _errors_against(ax, rows, key, x):
+    """L2 and broken H1 errors of each element against x(row) on log-log axes."""
+    for element, rs in _series(rows, key).items():
+        xs, m, name = [x(r) for r in rs], MARKERS.get(element, "^"), NAMES.get(element, element)
+        ax.loglog(xs, [r[key]["l2"] for r in rs], m + "-", label="%s, L2" % name)
+        ax.loglog(xs, [r[key]["h1_semi"] for r in rs], m + "--", label="%s, broken H1 seminorm" % name)
+
+
+def _finish(fig, ax, path, title, xlabel, ylabel):
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def plot_error_vs_h(study, path, title):
     rows, key = study["rows"], error_key(study["rows"])
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
-    for element, rs in _series(rows, key).items():
-        h = [r["h"] for r in rs]
-        ax.loglog(h, [r[key]["l2"] for r in rs], MARKERS.get(element, "^") + "-", label="%s, L2" % NAMES.get(element, element))
-        ax.loglog(h, [r[key]["h1_semi"] for r in rs], MARKERS.get(element, "^") + "--", label="%s, broken H1 seminorm" % NAMES.get(element, element))
+    _errors_against(ax, rows, key, lambda r: r["h"])
     hs = sorted({r["h"] for r in rows})
     if hs:
         h0, h1 = hs[0], hs[-1]
@@ -35,31 +51,15 @@ def plot_error_vs_h(study, path, title):
         ax.loglog([h0, h1], [ref * (h0 / h1), ref], "k:", label="slope 1")
         ref2 = max(r[key]["l2"] for r in rows if key in r)
         ax.loglog([h0, h1], [ref2 * (h0 / h1) ** 2, ref2], "k-.", label="slope 2")
-    ax.set_xlabel("h")
-    ax.set_ylabel("error" + (" against the reference" if key == "error_reference" else " against the exact solution"))
-    ax.set_title(title)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    against = " against the reference" if key == "error_reference" else " against the exact solution"
+    _finish(fig, ax, path, title, "h", "error" + against)
 
 
 def plot_work_precision(study, path, title):
     rows, key = study["rows"], error_key(study["rows"])
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
-    for element, rs in _series(rows, key).items():
-        t = [max(r["total_seconds"], 1e-6) for r in rs]
-        ax.loglog(t, [r[key]["l2"] for r in rs], MARKERS.get(element, "^") + "-", label="%s, L2" % NAMES.get(element, element))
-        ax.loglog(t, [r[key]["h1_semi"] for r in rs], MARKERS.get(element, "^") + "--", label="%s, broken H1 seminorm" % NAMES.get(element, element))
-    ax.set_xlabel("run time to solution [s] (mesh, set-up, assembly, solve)")
-    ax.set_ylabel("error")
-    ax.set_title(title)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _errors_against(ax, rows, key, lambda r: max(r["total_seconds"], 1e-6))
+    _finish(fig, ax, path, title, "run time to solution [s] (mesh, set-up, assembly, solve)", "error")
 
 
 def plot_solution(h5_files, path, title):

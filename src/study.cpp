@@ -13,7 +13,7 @@ namespace signorini {
 PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, StudyOptions &o)
 {
   const char *names[] = {"p1", "cr"};
-  PetscInt    ref     = (PetscInt)o.referenceElement, nel = 2;
+  PetscInt    ref     = (PetscInt)o.referenceElement;
   char        elements[64] = "p1,cr", file[PETSC_MAX_PATH_LEN] = "", profiles[PETSC_MAX_PATH_LEN] = "";
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Convergence study", "signorini");
@@ -24,7 +24,6 @@ PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, StudyOptions &o)
   PetscCall(PetscOptionsString("-study_output", "Write the study table as JSON to this file", "", file, file, sizeof file, NULL));
   PetscCall(PetscOptionsString("-study_profiles", "On the finest level write PREFIX-<element>.h5 and PREFIX-<element>-contact.csv", "", profiles, profiles, sizeof profiles, NULL));
   PetscOptionsEnd();
-  (void)nel;
   o.referenceElement = (Element)ref;
   o.file             = file;
   o.profiles         = profiles;
