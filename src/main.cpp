@@ -128,6 +128,23 @@ static PetscErrorCode Run(MPI_Comm comm)
   PetscFunctionReturn(0);
 }
 
+// A mistyped option must not pass unseen: list every option that no component read (as -options_left
+// does), e.g. -snes_* options in a scene without a contact part, where no SNES is created.
+static PetscErrorCode WarnUnusedOptions(MPI_Comm comm)
+{
+  PetscInt  n;
+  char    **names, **values;
+  PetscBool help, explicitLeft;
+  PetscFunctionBeginUser;
+  PetscCall(PetscOptionsHasHelp(NULL, &help));
+  PetscCall(PetscOptionsHasName(NULL, NULL, "-options_left", &explicitLeft));
+  if (help || explicitLeft) PetscFunctionReturn(0); // PETSc reports them itself with -options_left
+  PetscCall(PetscOptionsLeftGet(NULL, &n, &names, &values));
+  for (PetscInt i = 0; i < n; ++i) PetscCall(PetscPrintf(comm, "signorini: warning: option -%s%s%s was not used (mistyped, or not needed by this scene)\n", names[i], values[i] ? " " : "", values[i] ? values[i] : ""));
+  PetscCall(PetscOptionsLeftRestore(NULL, &n, &names, &values));
+  PetscFunctionReturn(0);
+}
+
 int main(int argc, char **argv)
 {
   PetscErrorCode ierr = PetscInitialize(&argc, &argv, NULL, help);
@@ -137,6 +154,7 @@ int main(int argc, char **argv)
   PetscOptionsGetBool(NULL, NULL, "-error_traceback", &traceback, NULL);
   if (!traceback) PetscPushErrorHandler(PetscReturnErrorHandler, NULL);
   ierr = Run(PETSC_COMM_WORLD);
+  if (!ierr) ierr = WarnUnusedOptions(PETSC_COMM_WORLD);
   if (ierr) {
     PetscMPIInt rank;
     MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
