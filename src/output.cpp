@@ -21,7 +21,7 @@ PetscErrorCode OutputOptionsFromCommandLine(MPI_Comm comm, OutputOptions &o)
   PetscFunctionReturn(0);
 }
 
-// A clone of the mesh with one DOF per point of depth `depth` (0: vertices) or height 0 (cells).
+// A clone of the mesh with one DOF per cell (cells = true) or per vertex.
 static PetscErrorCode PointFieldDM(DM mesh, bool cells, DM *dm)
 {
   PetscSection s;
