@@ -152,12 +152,84 @@ static PetscErrorCode CreateBox(MPI_Comm comm, const MeshOptions &o, DM *dm, std
   PetscFunctionReturn(0);
 }
 
-// Checks a mesh held on one process: simplices of one dimension (2 or 3), all of positive measure.
+PetscErrorCode ClosureVertices(DM dm, PetscInt p, PetscInt vStart, PetscInt vEnd, std::vector<PetscInt> &verts)
+{
+  PetscInt *closure = nullptr, n;
+  PetscFunctionBeginUser;
+  verts.clear();
+  PetscCall(DMPlexGetTransitiveClosure(dm, p, PETSC_TRUE, &n, &closure));
+  for (PetscInt i = 0; i < n; ++i)
+    if (closure[2 * i] >= vStart && closure[2 * i] < vEnd) verts.push_back(closure[2 * i]);
+  PetscCall(DMPlexRestoreTransitiveClosure(dm, p, PETSC_TRUE, &n, &closure));
+  PetscFunctionReturn(0);
+}
+
+// A mesh that folds over itself (an inverted cell: a vertex moved across an opposite face) has cells of
+// positive measure, so the measure check does not see it, yet the solution on it is wrong. In a valid mesh
+// the two cells of every interior face lie on opposite sides of it; the orientation in which the file
+// lists a cell's vertices does not matter.
+static std::string CheckNoFolds(DM dm, const std::string &name)
+{
+  PetscInt           dim, fStart, fEnd;
+  Vec                coords;
+  PetscSection       csec;
+  const PetscScalar *x;
+  std::string        problem;
+  if (DMGetDimension(dm, &dim) || DMPlexGetHeightStratum(dm, 1, &fStart, &fEnd) || DMGetCoordinatesLocal(dm, &coords) || DMGetCoordinateSection(dm, &csec) || VecGetArrayRead(coords, &x)) return name + ": cannot query the mesh faces";
+  auto point = [&](PetscInt v, PetscInt d) {
+    PetscInt off = 0;
+    PetscSectionGetOffset(csec, v, &off);
+    return PetscRealPart(x[off + d]);
+  };
+  std::vector<PetscInt> fv, cv;
+  PetscInt              vStart, vEnd;
+  if (DMPlexGetDepthStratum(dm, 0, &vStart, &vEnd)) return name + ": cannot query the mesh vertices";
+  for (PetscInt f = fStart; f < fEnd && problem.empty(); ++f) {
+    PetscInt        ns;
+    const PetscInt *supp;
+    if (DMPlexGetSupportSize(dm, f, &ns) || DMPlexGetSupport(dm, f, &supp) || ns != 2) continue;
+    if (ClosureVertices(dm, f, vStart, vEnd, fv)) return name + ": cannot query the mesh faces";
+    PetscReal side[2];
+    for (int k = 0; k < 2; ++k) {
+      if (ClosureVertices(dm, supp[k], vStart, vEnd, cv)) return name + ": cannot query the mesh cells";
+      PetscInt opp = -1;
+      for (PetscInt v : cv)
+        if (std::find(fv.begin(), fv.end(), v) == fv.end()) opp = v;
+      // signed measure of the simplex (face vertices, opposite vertex): its sign says which side opp is on
+      std::vector<PetscReal> X;
+      for (PetscInt i = 0; i <= dim; ++i)
+        for (PetscInt d = 0; d < dim; ++d) X.push_back(point(i < dim ? fv[i] : opp, d));
+      const PetscInt order[4] = {0, 1, 2, 3};
+      side[k]                 = SimplexDet(dim, order, X);
+    }
+    if (side[0] * side[1] >= 0) problem = Format("%s: cells %d and %d lie on the same side of their common face (an inverted cell: the mesh folds over itself)", name.c_str(), (int)supp[0], (int)supp[1]);
+  }
+  VecRestoreArrayRead(coords, &x);
+  return problem;
+}
+
+// A 2D mesh read with all three coordinates must lie in a plane z = const: PETSc would otherwise drop z
+// and silently solve on the projection of a curved surface.
+static std::string CheckFlat(DM dm, const std::string &name)
+{
+  PetscInt           dim, cdim, n;
+  Vec                coords;
+  const PetscScalar *x;
+  if (DMGetDimension(dm, &dim) || DMGetCoordinateDim(dm, &cdim) || DMGetCoordinatesLocal(dm, &coords) || VecGetLocalSize(coords, &n) || VecGetArrayRead(coords, &x)) return name + ": cannot query the coordinates";
+  std::string problem;
+  for (PetscInt i = 0; i < n && problem.empty(); ++i)
+    if (i % cdim >= dim && PetscRealPart(x[i]) != PetscRealPart(x[i % cdim])) problem = Format("%s: a %dD mesh that is not flat (coordinate %d varies: a surface mesh?); only planar 2D or 3D volume meshes are supported", name.c_str(), (int)dim, (int)(i % cdim));
+  VecRestoreArrayRead(coords, &x);
+  return problem;
+}
+
+// Checks a mesh held on one process: simplices of one dimension (2 or 3), all of positive measure, no folds.
 static std::string CheckCoarseMesh(DM dm, const std::string &name)
 {
   PetscInt dim, cStart, cEnd;
   if (DMGetDimension(dm, &dim) || DMPlexGetHeightStratum(dm, 0, &cStart, &cEnd)) return name + ": cannot query the mesh";
   if (dim != 2 && dim != 3) return Format("%s: mesh dimension is %d, expected 2 or 3", name.c_str(), (int)dim);
+  if (std::string flat = CheckFlat(dm, name); !flat.empty()) return flat;
   if (cEnd <= cStart) return Format("%s: the mesh has no cells of dimension %d", name.c_str(), (int)dim);
   PetscReal vmax = 0;
   std::vector<PetscReal> vol(cEnd - cStart);
@@ -171,7 +243,7 @@ static std::string CheckCoarseMesh(DM dm, const std::string &name)
   }
   for (PetscInt c = cStart; c < cEnd; ++c)
     if (!(std::fabs(vol[c - cStart]) > 1e-12 * vmax)) return Format("%s: cell %d has zero measure (degenerate)", name.c_str(), (int)(c - cStart));
-  return "";
+  return CheckNoFolds(dm, name);
 }
 
 // Reads a Gmsh file. Rank 0 first reads it alone to check it, so that a missing, truncated or non-mesh
@@ -193,8 +265,13 @@ static PetscErrorCode CreateFromGmsh(MPI_Comm comm, const MeshOptions &o, DM *dm
       std::fclose(fp);
     }
     if (problem.empty()) {
-      DM             test = nullptr;
+      // read all three coordinates, so that CheckCoarseMesh can see whether a 2D mesh is flat
+      DM        test = nullptr;
+      PetscBool userSpaceDim;
+      PetscCall(PetscOptionsHasName(NULL, NULL, "-dm_plex_gmsh_spacedim", &userSpaceDim));
+      if (!userSpaceDim) PetscCall(PetscOptionsSetValue(NULL, "-dm_plex_gmsh_spacedim", "3"));
       PetscErrorCode ierr = DMPlexCreateGmshFromFile(PETSC_COMM_SELF, o.file.c_str(), PETSC_TRUE, &test);
+      if (!userSpaceDim) PetscCall(PetscOptionsClearValue(NULL, "-dm_plex_gmsh_spacedim"));
       if (ierr) problem = name + ": cannot be read as a Gmsh mesh: " + LastPetscError(ierr);
       else problem = CheckCoarseMesh(test, name);
       if (test) PetscCall(DMDestroy(&test));

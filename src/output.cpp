@@ -18,6 +18,7 @@ PetscErrorCode OutputOptionsFromCommandLine(MPI_Comm comm, OutputOptions &o)
   PetscOptionsEnd();
   o.file = file;
   if (!o.file.empty() && (o.file.size() < 4 || o.file.substr(o.file.size() - 3) != ".h5")) SIGNORINI_INPUT_ERROR(comm, "option -output: '%s' must end in .h5", o.file.c_str());
+  if (!o.file.empty()) PetscCall(CheckWritable(comm, "-output", o.file));
   PetscFunctionReturn(0);
 }
 

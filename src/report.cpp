@@ -14,6 +14,7 @@ PetscErrorCode ReportOptionsFromCommandLine(MPI_Comm comm, std::string &summaryF
   PetscCall(PetscOptionsString("-summary", "Write the run's figures as JSON to this file", "", file, file, sizeof file, NULL));
   PetscOptionsEnd();
   summaryFile = file;
+  if (!summaryFile.empty()) PetscCall(CheckWritable(comm, "-summary", summaryFile));
   PetscFunctionReturn(0);
 }
 

@@ -1,7 +1,9 @@
 #include "signorini/space.h"
+#include "signorini/mesh.h"
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 
 namespace signorini {
 
@@ -89,19 +91,6 @@ void Space::FaceToCell(const BoundaryFace &bf, const PetscReal *mu, PetscReal *l
   for (PetscInt k = 0; k <= dim; ++k) lambda[k] = k == bf.opposite ? 0.0 : mu[n++];
 }
 
-// Vertices of point p (in closure order) within [vStart, vEnd).
-static PetscErrorCode ClosureVertices(DM dm, PetscInt p, PetscInt vStart, PetscInt vEnd, std::vector<PetscInt> &verts)
-{
-  PetscInt *closure = nullptr, n;
-  PetscFunctionBeginUser;
-  verts.clear();
-  PetscCall(DMPlexGetTransitiveClosure(dm, p, PETSC_TRUE, &n, &closure));
-  for (PetscInt i = 0; i < n; ++i)
-    if (closure[2 * i] >= vStart && closure[2 * i] < vEnd) verts.push_back(closure[2 * i]);
-  PetscCall(DMPlexRestoreTransitiveClosure(dm, p, PETSC_TRUE, &n, &closure));
-  PetscFunctionReturn(0);
-}
-
 static PetscErrorCode CreateSection(Space &s, PetscInt vStart, PetscInt vEnd, PetscInt fStart, PetscInt fEnd)
 {
   PetscSection section;
@@ -185,6 +174,14 @@ static PetscErrorCode BuildCellTables(Space &s, PetscInt vStart, PetscInt vEnd)
   PetscFunctionReturn(0);
 }
 
+// "x, y[, z]" of the centroid of mesh point p, for messages.
+static std::string PointText(const Space &s, PetscInt p)
+{
+  PetscReal measure, x[3] = {0, 0, 0}, n[3];
+  if (DMPlexComputeCellGeometryFVM(s.dm, p, &measure, x, n)) return "?";
+  return s.dim == 2 ? Format("%g, %g", (double)x[0], (double)x[1]) : Format("%g, %g, %g", (double)x[0], (double)x[1], (double)x[2]);
+}
+
 // Collects the faces of every named part, checking that each part exists and lies on the boundary.
 static PetscErrorCode CollectBoundary(Space &s, const Problem &problem, PetscInt fStart, PetscInt fEnd)
 {
@@ -195,7 +192,10 @@ static PetscErrorCode CollectBoundary(Space &s, const Problem &problem, PetscInt
   PetscCall(DMLabelCreate(PETSC_COMM_SELF, "boundary", &boundary));
   PetscCall(DMPlexMarkBoundaryFaces(s.dm, 1, boundary));
   const std::pair<const char *, const std::vector<PetscInt> *> parts[] = {{"-bc_dirichlet", &problem.dirichlet}, {"-bc_neumann", &problem.neumann}, {"-bc_contact", &problem.contact}};
-  std::string interior;
+  // Each face carries at most one condition: a face in two named parts (a Gmsh line in two physical
+  // groups, say) would get its Neumann integral twice, or be both Dirichlet and contact.
+  std::map<PetscInt, std::pair<const char *, PetscInt>> named;
+  std::string                                            interior, overlap;
   for (const auto &part : parts) {
     for (PetscInt value : *part.second) {
       PetscInt local = 0, global = 0;
@@ -209,6 +209,7 @@ static PetscErrorCode CollectBoundary(Space &s, const Problem &problem, PetscInt
         for (PetscInt j = 0; j < n; ++j) {
           const PetscInt f = pts[j];
           if (f < fStart || f >= fEnd) continue; // refined labels also hold vertices and edges
+          ++local;
           PetscInt isBoundary, nsupp;
           const PetscInt *supp, *cone;
           PetscCall(DMLabelGetValue(boundary, f, &isBoundary));
@@ -217,16 +218,20 @@ static PetscErrorCode CollectBoundary(Space &s, const Problem &problem, PetscInt
             if (interior.empty()) interior = Format("option %s: boundary part %d contains interior faces", part.first, (int)value);
             continue;
           }
+          const auto first = named.emplace(f, std::make_pair(part.first, value));
+          if (!first.second) {
+            if (overlap.empty()) overlap = Format("option%s %s%s%s: boundary parts %d and %d overlap (they share the face near (%s)); each face may carry one condition", first.first->second.first == part.first ? "" : "s", first.first->second.first, first.first->second.first == part.first ? "" : " and ", first.first->second.first == part.first ? "" : part.first, (int)first.first->second.second, (int)value, PointText(s, f).c_str());
+            continue;
+          }
           PetscCall(DMPlexGetSupport(s.dm, f, &supp));
           PetscCall(DMPlexGetCone(s.dm, supp[0], &cone));
-          BoundaryFace bf{supp[0] - s.cStart, -1, value, -1};
+          BoundaryFace bf{supp[0] - s.cStart, -1, value, -1, f};
           for (PetscInt k = 0; k <= s.dim; ++k)
             if (cone[k] == f) {
               bf.opposite = s.cellOpp[bf.cell * s.Nb() + k];
               if (s.element == Element::CR) bf.dof = s.cellDof[bf.cell * s.Nb() + k];
             }
           s.boundary.push_back(bf);
-          ++local;
         }
         PetscCall(ISRestoreIndices(is, &pts));
         PetscCall(ISDestroy(&is));
@@ -237,6 +242,7 @@ static PetscErrorCode CollectBoundary(Space &s, const Problem &problem, PetscInt
   }
   PetscCall(DMLabelDestroy(&boundary));
   PetscCall(CheckAll(comm, interior.empty(), interior));
+  PetscCall(CheckAll(comm, overlap.empty(), overlap));
   PetscFunctionReturn(0);
 }
 
@@ -293,6 +299,61 @@ static PetscErrorCode ClassifyDofs(Space &s, const Problem &problem)
   PetscFunctionReturn(0);
 }
 
+// The obstacle must not lie above the Dirichlet data where Gamma_D and Gamma_C meet: the trace of u is
+// continuous there, so u = u_D and u >= psi cannot both hold. The discrete set K_h would not notice (it
+// constrains only contact DOFs), so the check is made at the vertices the two parts share. A vertex can be
+// on a Dirichlet face of one rank and a contact face of another: the flags are or-ed onto the owner
+// through the point SF.
+static PetscErrorCode CheckObstacleMeetsDirichlet(const Space &s, const Problem &problem)
+{
+  MPI_Comm           comm = PetscObjectComm((PetscObject)s.dm);
+  PetscSF            sf;
+  PetscInt           pStart, pEnd, nroots, nleaves, vStart, vEnd;
+  const PetscInt    *leaves;
+  Vec                coords;
+  PetscSection       csec;
+  const PetscScalar *xa;
+  std::vector<PetscInt> verts;
+  std::string        problemText, error;
+  PetscFunctionBeginUser;
+  PetscCall(DMPlexGetChart(s.dm, &pStart, &pEnd));
+  PetscCall(DMPlexGetDepthStratum(s.dm, 0, &vStart, &vEnd));
+  std::vector<PetscInt> flags(pEnd - pStart, 0);
+  for (const BoundaryFace &bf : s.boundary) {
+    const bool dirichlet = std::count(problem.dirichlet.begin(), problem.dirichlet.end(), bf.part) > 0;
+    const bool contact   = std::count(problem.contact.begin(), problem.contact.end(), bf.part) > 0;
+    if (!dirichlet && !contact) continue;
+    PetscCall(ClosureVertices(s.dm, bf.face, vStart, vEnd, verts));
+    for (PetscInt v : verts) flags[v - pStart] |= dirichlet ? 1 : 2;
+  }
+  std::vector<PetscInt> owned(flags);
+  std::vector<char>     isLeaf(pEnd - pStart, 0);
+  PetscCall(DMGetPointSF(s.dm, &sf));
+  PetscCall(PetscSFGetGraph(sf, &nroots, &nleaves, &leaves, NULL));
+  if (nroots >= 0) {
+    PetscCall(PetscSFReduceBegin(sf, MPIU_INT, flags.data(), owned.data(), MPI_BOR));
+    PetscCall(PetscSFReduceEnd(sf, MPIU_INT, flags.data(), owned.data(), MPI_BOR));
+    for (PetscInt i = 0; i < nleaves; ++i) isLeaf[(leaves ? leaves[i] : i) - pStart] = 1;
+  }
+  PetscCall(DMGetCoordinatesLocal(s.dm, &coords));
+  PetscCall(DMGetCoordinateSection(s.dm, &csec));
+  PetscCall(VecGetArrayRead(coords, &xa));
+  for (PetscInt v = vStart; v < vEnd && problemText.empty(); ++v) {
+    if (owned[v - pStart] != 3 || isLeaf[v - pStart]) continue;
+    PetscInt  off;
+    PetscReal x[3] = {0, 0, 0};
+    PetscCall(PetscSectionGetOffset(csec, v, &off));
+    for (PetscInt d = 0; d < s.dim; ++d) x[d] = PetscRealPart(xa[off + d]);
+    const PetscReal psi = problem.psi->Scalar(x, s.dim, error), uD = problem.uD->Scalar(x, s.dim, error);
+    if (!error.empty()) problemText = error;
+    else if (psi - uD > 1e-8 * std::max({(PetscReal)1.0, std::fabs(psi), std::fabs(uD)}))
+      problemText = Format("options -psi and -u_D: the obstacle psi = %g lies above the Dirichlet value u_D = %g at (%g, %g, %g), where Gamma_D and Gamma_C meet; no solution satisfies both (infeasible)", (double)psi, (double)uD, (double)x[0], (double)x[1], (double)x[2]);
+  }
+  PetscCall(VecRestoreArrayRead(coords, &xa));
+  PetscCall(CheckAll(comm, problemText.empty(), problemText));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Space &s)
 {
   PetscInt vStart, vEnd, fStart, fEnd;
@@ -309,6 +370,7 @@ PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Spa
   PetscCall(BuildCellTables(s, vStart, vEnd));
   PetscCall(CollectBoundary(s, problem, fStart, fEnd));
   PetscCall(ClassifyDofs(s, problem));
+  if (problem.HasContact() && !problem.dirichlet.empty()) PetscCall(CheckObstacleMeetsDirichlet(s, problem));
   PetscFunctionReturn(0);
 }
 

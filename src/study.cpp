@@ -36,6 +36,8 @@ PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, StudyOptions &o)
   }
   if (o.levels < 0) SIGNORINI_INPUT_ERROR(comm, "option -study_levels: must be >= 0, got %" PetscInt_FMT, o.levels);
   if (o.referenceRefine < 0) SIGNORINI_INPUT_ERROR(comm, "option -reference_refine: must be >= 0, got %" PetscInt_FMT, o.referenceRefine);
+  if (!o.file.empty()) PetscCall(CheckWritable(comm, "-study_output", o.file));
+  if (!o.profiles.empty()) PetscCall(CheckWritable(comm, "-study_profiles", o.profiles + "-" + ElementName(o.elements.front()) + ".h5"));
   PetscFunctionReturn(0);
 }
 

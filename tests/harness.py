@@ -19,10 +19,11 @@ def scene(name):
 
 
 def run(args, ranks=1, check=True):
-    """Runs signorini with `args`; returns (returncode, stdout, stderr, summary dict or None)."""
+    """Runs signorini with `args`; returns (returncode, stdout, stderr, summary dict or None). When `args`
+    name their own -summary file, it is left to the caller and the dict is None."""
     with tempfile.TemporaryDirectory() as tmp:
         summary = os.path.join(tmp, "summary.json")
-        cmd = [EXE] + list(args) + ["-summary", summary]
+        cmd = [EXE] + list(args) + ([] if "-summary" in args else ["-summary", summary])
         if ranks > 1:
             cmd = [MPIEXEC, "--oversubscribe", "-n", str(ranks)] + cmd
         p = subprocess.run(cmd, capture_output=True, text=True, env=ENV, timeout=600)

@@ -9,6 +9,35 @@ import tempfile
 import harness
 from harness import ROOT, Checker, scene
 
+
+
+def write_gmsh(path, nodes, elements):
+    """Gmsh 2.2 ASCII file: nodes {id: (x, y, z)}, elements [(gmsh type, physical tag, node ids)]."""
+    with open(path, "w") as f:
+        f.write("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n%d\n" % len(nodes))
+        for k, p in nodes.items():
+            f.write("%d %r %r %r\n" % ((k,) + tuple(p)))
+        f.write("$EndNodes\n$Elements\n%d\n" % len(elements))
+        for i, (kind, tag, ids) in enumerate(elements):
+            f.write("%d %d 2 %d %d %s\n" % (i + 1, kind, tag, tag, " ".join(map(str, ids))))
+        f.write("$EndElements\n")
+
+
+def unit_square(path, center=(0.5, 0.5, 0.0), z=lambda x, y: 0.0, extra_lines=(), triangles=True):
+    """The unit square as a 3x3 grid of nodes (node 5 at `center`), 8 triangles (physical surface 10),
+    sides labelled 1 bottom, 2 right, 3 top, 4 left, plus (tag, (a, b)) extra labelled lines."""
+    nodes = {1 + i + 3 * j: (0.5 * i, 0.5 * j, z(0.5 * i, 0.5 * j)) for j in range(3) for i in range(3)}
+    nodes[5] = center
+    lines = {1: [(1, 2), (2, 3)], 2: [(3, 6), (6, 9)], 3: [(9, 8), (8, 7)], 4: [(7, 4), (4, 1)]}
+    elements = [(1, tag, l) for tag, ls in lines.items() for l in ls] + [(1, tag, l) for tag, l in extra_lines]
+    if triangles:
+        for j in range(2):
+            for i in range(2):
+                a = 1 + i + 3 * j
+                elements += [(2, 10, (a, a + 1, a + 4)), (2, 10, (a, a + 4, a + 3))]
+    write_gmsh(path, nodes, elements)
+
+
 c = Checker()
 base = scene("paper-5.1") + ["-box_faces", "8"]
 PREFIX = "signorini: error:"
@@ -28,6 +57,17 @@ with tempfile.TemporaryDirectory() as inputs:
     with open(truncated, "w") as f:
         f.write(msh[: start + (end - start) // 2])  # cut in the middle of $Elements (and of a line)
     nodir = os.path.join(inputs, "no-such-directory", "out.h5")
+    folded, flat, lines, surface, quads, overlap = (os.path.join(inputs, n + ".msh") for n in ("folded", "flat", "lines", "surface", "quads", "overlap"))
+    unit_square(folded, center=(1.2, 0.5, 0.0))  # node 5 moved across the right side: cells overlap
+    unit_square(flat, center=(1.0, 0.5, 0.0))  # node 5 on the right side: two cells of zero area
+    unit_square(lines, triangles=False)  # boundary lines only: no 2D cells
+    unit_square(surface, z=lambda x, y: x * y)  # a curved surface in 3D, not a planar mesh
+    write_gmsh(quads, {1: (0, 0, 0), 2: (1, 0, 0), 3: (1, 1, 0), 4: (0, 1, 0)}, [(1, 1, (1, 2)), (3, 10, (1, 2, 3, 4))])
+    unit_square(overlap, extra_lines=[(5, (1, 2))])  # one bottom line also in physical group 5
+    isdir = os.path.join(inputs, "a-directory.h5")
+    os.mkdir(isdir)
+    notdir = os.path.join(square, "summary.json")  # a path below a regular file
+    square_scene = ["-bc_dirichlet", "3", "-bc_contact", "1", "-bc_neumann", "2,4"]
 
     # (name, extra options, text the message must contain, also on 2 ranks)
     cases = [
@@ -47,6 +87,26 @@ with tempfile.TemporaryDirectory() as inputs:
         ("dim 4", ["-dim", "4"], "-dim", False),
         ("unknown space", ["-space", "q2"], "-space", True),
         ("output in a missing directory", ["-output", nodir], nodir, False),
+        ("output path is a directory", ["-output", isdir], isdir, False),
+        ("summary below a regular file", ["-summary", notdir], "-summary", False),
+        ("inverted (folded) cells", ["-mesh_file", folded] + square_scene, "inverted cell", True),
+        ("zero-area cells", ["-mesh_file", flat] + square_scene, "zero measure", True),
+        ("no cells of dimension 2 or 3", ["-mesh_file", lines] + square_scene, "mesh dimension is 1", True),
+        ("curved surface mesh", ["-mesh_file", surface] + square_scene, "not flat", True),
+        ("quadrilateral cells", ["-mesh_file", quads, "-bc_dirichlet", "1", "-bc_contact", ""], "quadrilateral", True),
+        ("a face in a Dirichlet and a contact part", ["-mesh_file", overlap, "-bc_dirichlet", "3,5"], "-bc_dirichlet and -bc_contact", True),
+        ("a face in two Neumann parts", ["-mesh_file", overlap, "-bc_neumann", "2,4,5", "-g", "1"], "overlap", True),
+        ("same part named twice", ["-bc_neumann", "1,2,4"], "-bc_neumann and -bc_contact", False),
+        ("no Dirichlet and no contact part (singular)", ["-bc_dirichlet", "", "-bc_contact", "", "-bc_neumann", "1,2,3,4"], "singular", False),
+        ("obstacle above u_D where Gamma_D meets Gamma_C", ["-bc_dirichlet", "3,4", "-bc_neumann", "2", "-psi", "0.5 - x"], "infeasible", True),
+        ("f NaN", ["-f", "sqrt(x - 0.5)"], "option -f:", True),
+        ("f infinite", ["-f", "1 / (x - x)"], "option -f:", True),
+        ("g NaN on Gamma_N", ["-g", "sqrt(y - 2)"], "option -g:", True),
+        ("u_D NaN on Gamma_D", ["-u_D", "log(x - 0.5)"], "option -u_D:", True),
+        ("psi NaN on Gamma_C", ["-psi", "sqrt(x - 0.5)"], "option -psi:", True),
+        ("exact solution NaN", ["-exact_u", "sqrt(x - 0.5)", "-exact_grad", "0, 0"], "option -exact_u:", True),
+        ("exact gradient infinite", ["-exact_u", "0", "-exact_grad", "0, 1 / (y - y)"], "option -exact_grad:", True),
+        ("exact gradient with 3 components in 2D", ["-exact_u", "0", "-exact_grad", "0, 0, 0"], "option -exact_grad:", False),
     ]
 
     for name, extra, names, parallel in cases:

@@ -37,6 +37,8 @@ struct MeshInfo {
 };
 
 PetscErrorCode MeshOptionsFromCommandLine(MPI_Comm comm, MeshOptions &opts);
+// Vertices (depth-0 points, vStart <= v < vEnd) in the closure of mesh point p, in closure order.
+PetscErrorCode ClosureVertices(DM dm, PetscInt p, PetscInt vStart, PetscInt vEnd, std::vector<PetscInt> &verts);
 // Longest edge of the mesh (max over ranks).
 PetscErrorCode MeshSize(DM dm, PetscReal *hmax);
 // One uniform (regular) refinement, local to each rank. If `parent` is given, parent[c] is the cell of

@@ -33,6 +33,7 @@ struct BoundaryFace {
   PetscInt opposite; // index (0..dim) of the cell vertex not on the face
   PetscInt part;     // "Face Sets" value
   PetscInt dof;      // CR: local DOF of the face; P1: -1
+  PetscInt face;     // the face's mesh point
 };
 
 enum DofKind : char { kFree = 0, kDirichlet = 1, kContact = 2 };
@@ -76,7 +77,8 @@ struct Space {
 
 PetscErrorCode ElementFromCommandLine(MPI_Comm comm, Element &e);
 // Builds the section, cell tables and DOF classification. Checks that every named part exists on the mesh
-// and consists of boundary faces, and that the cells are not degenerate.
+// and consists of boundary faces, that no face is in two named parts, that the cells are not degenerate,
+// and that psi <= u_D where Gamma_D and Gamma_C meet (otherwise no u in H^1 satisfies both).
 PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Space &space);
 PetscErrorCode SpaceDestroy(Space &space);
 
