@@ -1,4 +1,5 @@
 #include "signorini/assembly.h"
+#include "signorini/pattern.h"
 #include "signorini/stages.h"
 
 #include <algorithm>
@@ -121,7 +122,7 @@ PetscErrorCode AssembleSystem(const Space &space, const Problem &problem, const 
   std::string error;
   PetscFunctionBeginUser;
   PetscCall(StagePush(Stage::Setup));
-  PetscCall(DMCreateMatrix(space.dm, &sys.A));
+  PetscCall(CreateStiffnessMatrix(space, &sys.A));
   PetscCall(DMCreateGlobalVector(space.dm, &sys.b));
   PetscCall(PetscObjectSetName((PetscObject)sys.b, "b"));
   PetscCall(VecDuplicate(sys.b, &sys.load));

@@ -118,6 +118,7 @@ static PetscErrorCode Run(MPI_Comm comm)
   report.hasExact      = s.problem.HasExact();
   if (!s.output.file.empty()) PetscCall(WriteSolution(space, u, s.output));
   PetscCall(ReportGatherTimes(comm, start, report));
+  PetscCall(ReportGatherMemory(comm, sys.A, report));
   PetscCall(ReportPrint(comm, report));
   if (!s.summaryFile.empty()) PetscCall(ReportWriteJSON(comm, report, s.summaryFile));
 

@@ -1,5 +1,8 @@
 #include "signorini/report.h"
 
+#include <sys/resource.h>
+
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -32,6 +35,47 @@ PetscErrorCode ReportGatherTimes(MPI_Comm comm, PetscLogDouble start, Report &r)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode PeakRSS(MPI_Comm comm, double *sum, double *max)
+{
+  struct rusage ru;
+  PetscFunctionBeginUser;
+  PetscCheck(getrusage(RUSAGE_SELF, &ru) == 0, PETSC_COMM_SELF, PETSC_ERR_SYS, "getrusage failed");
+  const double mine = 1024.0 * ru.ru_maxrss; // kilobytes on Linux
+  PetscCallMPI(MPI_Allreduce(&mine, sum, 1, MPI_DOUBLE, MPI_SUM, comm));
+  PetscCallMPI(MPI_Allreduce(&mine, max, 1, MPI_DOUBLE, MPI_MAX, comm));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ReportGatherMemory(MPI_Comm comm, Mat A, Report &r)
+{
+  MatInfo   info;
+  PetscInt  rows;
+  PetscBool mpi, tracing;
+  PetscFunctionBeginUser;
+  PetscCall(PeakRSS(comm, &r.peakRSSSum, &r.peakRSSMax));
+  // MatInfo.memory is always 0 in PETSc 3.18, so the AIJ storage is counted from the nonzeros: a value and a
+  // column index each, and four index arrays of the rows (offsets, lengths, allocated lengths, diagonal) per
+  // block (MPIAIJ keeps a diagonal and an off-diagonal block).
+  PetscCall(MatGetInfo(A, MAT_GLOBAL_SUM, &info));
+  PetscCall(MatGetSize(A, &rows, NULL));
+  PetscCall(PetscObjectTypeCompare((PetscObject)A, MATMPIAIJ, &mpi));
+  r.matrixBytes = info.nz_allocated * (sizeof(PetscScalar) + sizeof(PetscInt)) + (mpi ? 2 : 1) * 4.0 * sizeof(PetscInt) * rows;
+  // PETSc counts its mallocs only with its tracing allocator, which must be chosen before PetscInitialize.
+  PetscCall(PetscMallocGetDebug(&tracing, NULL, NULL));
+  r.petscMallocPeak = -1;
+  if (tracing) {
+    PetscLogDouble mine;
+    PetscCall(PetscMallocGetMaximumUsage(&mine));
+    PetscCallMPI(MPI_Allreduce(&mine, &r.petscMallocPeak, 1, MPI_DOUBLE, MPI_SUM, comm));
+  }
+  PetscFunctionReturn(0);
+}
+
+static std::string Bytes(double b)
+{
+  return b >= 1e9 ? Format("%.2f GB", b / 1e9) : Format("%.1f MB", b / 1e6);
+}
+
 PetscErrorCode ReportPrint(MPI_Comm comm, const Report &r)
 {
   std::ostringstream o;
@@ -48,6 +92,12 @@ PetscErrorCode ReportPrint(MPI_Comm comm, const Report &r)
   o << "  time [s]:";
   for (int s = 0; s < (int)Stage::Count; ++s) o << Format(" %s %.3f", StageName((Stage)s), r.stageSeconds[s]);
   o << Format(", total %.3f\n", r.totalSeconds);
+  if (r.peakRSSSum > 0) {
+    const double dofs = (double)std::max(r.dofs, (PetscInt)1);
+    o << Format("  memory: peak RSS %s (sum over ranks, max rank %s), %.0f B/DOF; matrix %s, %.0f B/DOF; ", Bytes(r.peakRSSSum).c_str(), Bytes(r.peakRSSMax).c_str(), r.peakRSSSum / dofs, Bytes(r.matrixBytes).c_str(), r.matrixBytes / dofs);
+    if (r.petscMallocPeak >= 0) o << Format("PETSc malloc peak %s, %.0f B/DOF\n", Bytes(r.petscMallocPeak).c_str(), r.petscMallocPeak / dofs);
+    else o << "PETSc malloc peak not traced (-malloc_dump traces it)\n";
+  }
   PetscCall(PetscPrintf(comm, "%s", o.str().c_str()));
   PetscFunctionReturn(0);
 }
@@ -104,7 +154,9 @@ PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string
   if (r.hasExact) o << "  \"error\": {\"l2\": " << Num(r.error.l2) << ", \"h1_semi\": " << Num(r.error.h1semi) << ", \"h1\": " << Num(r.error.h1) << "},\n";
   o << "  \"time\": {";
   for (int s = 0; s < (int)Stage::Count; ++s) o << Str(StageName((Stage)s)) << ": " << Num(r.stageSeconds[s]) << ", ";
-  o << "\"total\": " << Num(r.totalSeconds) << "}\n}\n";
+  o << "\"total\": " << Num(r.totalSeconds) << "},\n";
+  o << "  \"memory\": {\"peak_rss_bytes_sum\": " << Num(r.peakRSSSum) << ", \"peak_rss_bytes_max\": " << Num(r.peakRSSMax) << ", \"peak_rss_bytes_per_dof\": " << Num(r.peakRSSSum / std::max(r.dofs, (PetscInt)1));
+  o << ", \"matrix_bytes\": " << Num(r.matrixBytes) << ", \"petsc_malloc_peak_bytes\": " << (r.petscMallocPeak >= 0 ? Num(r.petscMallocPeak) : "null") << "}\n}\n";
   PetscCall(WriteFileAtomically(comm, file, o.str()));
   PetscFunctionReturn(0);
 }

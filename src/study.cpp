@@ -2,8 +2,6 @@
 #include "signorini/output.h"
 #include "signorini/report.h"
 
-#include <sys/resource.h>
-
 #include <cmath>
 #include <memory>
 #include <sstream>
@@ -39,15 +37,6 @@ PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, StudyOptions &o)
   if (!o.file.empty()) PetscCall(CheckWritable(comm, "-study_output", o.file));
   if (!o.profiles.empty()) PetscCall(CheckWritable(comm, "-study_profiles", o.profiles + "-" + ElementName(o.elements.front()) + ".h5"));
   PetscFunctionReturn(0);
-}
-
-static double PeakRSS(MPI_Comm comm)
-{
-  struct rusage ru;
-  getrusage(RUSAGE_SELF, &ru);
-  double mine = 1024.0 * ru.ru_maxrss, peak = mine;
-  MPI_Allreduce(&mine, &peak, 1, MPI_DOUBLE, MPI_MAX, comm);
-  return peak;
 }
 
 // space -> assembly -> solve on one mesh; the vector u is created here.
@@ -165,7 +154,8 @@ PetscErrorCode RunStudy(DM base, PetscInt N0, PetscReal h0, Problem &problem, co
       r.totalSeconds = meshSeconds[l] + (t1 - t0);
       PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &r.solveSeconds, 1, MPI_DOUBLE, MPI_MAX, comm));
       PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &r.totalSeconds, 1, MPI_DOUBLE, MPI_MAX, comm));
-      r.peakRSS = PeakRSS(comm);
+      double rssSum;
+      PetscCall(PeakRSS(comm, &rssSum, &r.peakRSS));
       if (problem.HasExact()) {
         PetscCall(ErrorAgainstExact(*space, problem, u, errorDegree, r.exact));
         r.hasExact = true;

@@ -19,11 +19,20 @@ struct Report {
   ErrorNorms  error;
   PetscLogDouble stageSeconds[(int)Stage::Count] = {0}; // max over ranks
   PetscLogDouble totalSeconds = 0;
+  // Memory in bytes. Peak resident set size of each process so far (getrusage), summed and max over ranks;
+  // the stiffness matrix's AIJ arrays (from MatGetInfo); the peak of PETSc's PetscMalloc'ed bytes summed over
+  // ranks, known only when PETSc's tracing allocator is on (-malloc_dump, -malloc_debug, -malloc_test),
+  // -1 otherwise (hypre and std::vector memory is never in it; the RSS includes everything).
+  double peakRSSSum = 0, peakRSSMax = 0, matrixBytes = 0, petscMallocPeak = -1;
 };
 
 PetscErrorCode ReportOptionsFromCommandLine(MPI_Comm comm, std::string &summaryFile);
 // Fills the stage times (max over ranks) and the total since `start`.
 PetscErrorCode ReportGatherTimes(MPI_Comm comm, PetscLogDouble start, Report &r);
+// Collective: peak resident set size of the processes so far (bytes), summed and max over ranks.
+PetscErrorCode PeakRSS(MPI_Comm comm, double *sum, double *max);
+// Collective: fills the memory figures; A is the stiffness matrix.
+PetscErrorCode ReportGatherMemory(MPI_Comm comm, Mat A, Report &r);
 PetscErrorCode ReportPrint(MPI_Comm comm, const Report &r);
 PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string &file);
 // Writes text on rank 0 to `file` through a temporary name and a rename; collective, fails on all ranks.
