@@ -1,0 +1,495 @@
+"""Stability report: the stiff and extreme scenes (petsc-options/stiff-*) with both elements, one row each:
+scene, element, solver settings, DOFs, Newton and KSP iterations, KKT residuals, energy, error (when known),
+time and status, printed as a table and written as CSV (default results/stability.csv).
+
+  run/stability [--ranks P] [--csv FILE] [--only TEXT] [--full] [--finest]
+
+What each row checks (status "ok", or "FAIL" with the reason in the notes):
+  * every single solve: it converged; the KKT residuals relative to the size of u and of the contact pressure
+    (min(u - psi) / max|u|, -min pressure / max pressure, max |(u - psi) pressure| / (max gap max pressure))
+    and the stationarity off Gamma_C (relative to the load, as the executable reports it) are below 1e-6;
+  * high contrast, stretched cells, varying psi: u equals a direct solve of the same discrete problem (MUMPS LU,
+    30 full Newton steps) to 1e-6 max|u|, so a solver that stops early is caught even when the KKT residuals
+    of the stiff rows hide it; manufactured scenes also show the error against the exact solution;
+  * load scaling (psi = 0): u(s f) / s equals u(f) to 1e-8 for s = 1e-10 ... 1e10, the energy scales by s^2;
+  * obstacle far below: no active DOF and u equals the plain linear solve (Gamma_C made a Neumann part) to 1e-7;
+    obstacle above: every contact DOF active, u equals the Dirichlet solve u = psi on Gamma_C to 1e-7, pressure > 0;
+  * convergence studies (many critical points, a solution below H^2): errors against a finer reference and the
+    observed rates; a rate below the optimal one is reported as "lower rate", which is not a failure.
+Where the default solver fails, the row of the preset that fixes it (petsc-options/solvers/high-contrast,
+load-scale) follows, and the default row's status reads "fail -> PRESET" (before and after); it counts as a
+failure only if the preset fails too. The exit status is 1 if any row has status FAIL.
+
+--full runs the many-critical-points studies for k = 1, 2, 4, ..., 64 with both loads (about 13 minutes) and the
+checkerboard with K = 1e9; --finest adds the finest 2D and 3D meshes (manufactured-2d/3d) that fit in 24 GiB on the
+ranks used, predicted from the memory per DOF of two smaller runs, and solves the largest of them that also fits
+about 5 minutes and the memory this machine has free (about 12 minutes in all)."""
+import argparse
+import csv
+import json
+import math
+import os
+import shlex
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+OPTIONS = os.path.join(ROOT, "petsc-options")
+EXE = os.environ.get("SIGNORINI_EXE", os.path.join(ROOT, "build", "signorini"))
+ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMPI_MCA_rmaps_base_oversubscribe="1")
+
+TOL_KKT = 1e-6      # KKT residuals and stationarity, relative
+TOL_DIRECT = 1e-6   # max|u - u_direct| / max|u_direct|
+TOL_EXACT = 1e-8    # identities that hold exactly in the discrete problem (scaling, no contact, full contact)
+ELEMENTS = ["p1", "cr"]
+DIRECT = ["-ksp_type", "preonly", "-pc_type", "lu", "-pc_factor_mat_solver_type", "mumps", "-snes_convergence_test", "skip",
+          "-snes_max_it", "30", "-snes_linesearch_type", "basic", "-snes_rtol", "0", "-snes_vi_zero_tolerance", "0"]
+
+
+def preset(name):
+    return ["-options_file", os.path.join(OPTIONS, "solvers", name)]
+
+
+def scene(name, replace=None):
+    """The options of petsc-options/NAME as a list; replace = (token, value) substitutes in every value (the
+    stiff scenes write their parameter, e.g. the contrast 1e6, as one literal token)."""
+    args = []
+    with open(os.path.join(OPTIONS, name)) as f:
+        for line in f:
+            line = line.strip()
+            if not line or line.startswith("#"):
+                continue
+            parts = shlex.split(line)
+            if replace:
+                parts = parts[:1] + [p.replace(*replace) for p in parts[1:]]
+            args += parts
+    if "-mesh_file" in args:  # scene files name their mesh relative to the repository root
+        i = args.index("-mesh_file") + 1
+        args[i] = os.path.join(ROOT, args[i])
+    return args
+
+
+class Runner:
+    """Runs signorini in a scratch folder; single runs return the summary and u (from -output), studies the JSON."""
+
+    def __init__(self, ranks, tmp):
+        self.ranks, self.tmp, self.count = ranks, tmp, 0
+
+    def _exec(self, args):
+        cmd = [EXE] + args
+        if self.ranks > 1:
+            cmd = ["mpirun", "--oversubscribe", "-n", str(self.ranks)] + cmd
+        t0 = time.time()
+        p = subprocess.run(cmd, capture_output=True, text=True, env=ENV, cwd=ROOT)
+        message = ""
+        if p.returncode != 0:
+            lines = [l for l in (p.stderr + p.stdout).splitlines() if "error" in l.lower()] or (p.stderr + p.stdout).splitlines()[-1:]
+            message = lines[0].replace("signorini: error: ", "") if lines else "exit %d" % p.returncode
+        return p.returncode, message, time.time() - t0
+
+    def solve(self, args):
+        self.count += 1
+        base = os.path.join(self.tmp, "run%d" % self.count)
+        rc, message, seconds = self._exec(args + ["-summary", base + ".json", "-output", base + ".h5"])
+        result = {"rc": rc, "message": message, "seconds": seconds, "summary": None, "u": None}
+        if rc == 0:
+            with open(base + ".json") as f:
+                result["summary"] = json.load(f)
+            result["u"] = read_u(base + ".h5")
+        return result
+
+    def study(self, args, profiles=False):
+        """A convergence study; with profiles, also the finest level's contact profile per element (CSV path)."""
+        self.count += 1
+        path = os.path.join(self.tmp, "study%d.json" % self.count)
+        prefix = os.path.join(self.tmp, "profile%d" % self.count)
+        rc, message, seconds = self._exec(args + ["-study_output", path] + (["-study_profiles", prefix] if profiles else []))
+        data = None
+        if rc == 0:
+            with open(path) as f:
+                data = json.load(f)
+        return {"rc": rc, "message": message, "seconds": seconds, "study": data, "profiles": prefix + "-%s-contact.csv"}
+
+
+def read_u(path):
+    """The DOF vector of a run (same mesh, element and ranks give the same ordering), or None without h5py."""
+    try:
+        import h5py
+        import numpy as np
+    except ImportError:
+        return None
+    with h5py.File(path, "r") as f:
+        return np.array(f["fields/u"])
+
+
+def max_abs(u):
+    return float(abs(u).max()) if u is not None and len(u) else 0.0
+
+
+def rel_diff(u, v, scale=1.0):
+    """max|u/scale - v| / max|v|, or None when a vector is missing."""
+    if u is None or v is None or len(u) != len(v):
+        return None
+    return max_abs(u / scale - v) / max(max_abs(v), 1e-300)
+
+
+def kkt_residual(s, u):
+    """The worst relative KKT residual on Gamma_C (see the module docstring) and the reason it is judged on."""
+    k = s.get("kkt")
+    if not k:
+        return 0.0
+    scale_u = max(max_abs(u), k["max_gap"], 1e-300)
+    worst = max(0.0, -k["min_gap"]) / scale_u
+    if k["active"] > 0:  # pressure and complementarity mean something only where there is contact
+        p = max(k["max_pressure"], 1e-300)
+        worst = max(worst, max(0.0, -k["min_pressure"]) / p, k["max_complementarity"] / (p * max(k["max_gap"], scale_u)))
+    return worst
+
+
+def row_from(name, variant, element, solver, result):
+    r = {"scene": name, "variant": variant, "element": element, "solver": solver, "seconds": result["seconds"],
+         "status": "ok", "check": "", "notes": []}
+    s = result["summary"]
+    if result["rc"] != 0 or s is None:
+        r["status"] = "FAIL"
+        r["notes"].append(result["message"])
+        return r
+    k = s.get("kkt", {})
+    r.update(dofs=s["dofs"], newton=s["solver"]["newton_iterations"], ksp=s["solver"]["ksp_iterations"],
+             reason=s["solver"]["converged_reason"], active=k.get("active"), contact_dofs=s["contact_dofs"],
+             min_gap=k.get("min_gap"), min_pressure=k.get("min_pressure"), max_pressure=k.get("max_pressure"),
+             max_complementarity=k.get("max_complementarity"), stationarity=s["stationarity"], energy=s["energy"],
+             kkt=kkt_residual(s, result["u"]), max_u=max_abs(result["u"]))
+    if "error" in s:
+        r["l2"], r["h1"] = s["error"]["l2"], s["error"]["h1"]
+    require(r, r["kkt"] <= TOL_KKT, "KKT residual %.1e > %.0e" % (r["kkt"], TOL_KKT))
+    require(r, r["stationarity"] <= TOL_KKT, "stationarity %.1e > %.0e" % (r["stationarity"], TOL_KKT))
+    return r
+
+
+def require(row, ok, why):
+    if not ok:
+        row["status"] = "FAIL"
+        row["notes"].append(why)
+
+
+def compare(row, what, diff, tol):
+    """Records a comparison of u with another solution in the row's check column; fails above tol."""
+    if row["status"] == "FAIL" and "dofs" not in row:
+        return
+    if diff is None:
+        row["notes"].append("%s: no vector to compare (python3-h5py missing?)" % what)
+        return
+    row["check"] = (row["check"] + "; " if row["check"] else "") + "%s %.1e" % (what, diff)
+    require(row, diff <= tol, "%s: max|u - u_%s| / max|u| = %.1e > %.0e" % (what, what, diff, tol))
+
+
+class Report:
+    def __init__(self, runner):
+        self.run, self.rows = runner, []
+
+    def add(self, row):
+        self.rows.append(row)
+        return row
+
+    def with_preset(self, name, variant, args, presets, check):
+        """Default solver and, for each element, the presets that fix it; check(row, result, element) adds the
+        case's own comparisons. A default row that fails while a preset row passes reads 'fail -> PRESET'."""
+        for element in ELEMENTS:
+            default = self.checked(name, variant, element, "default", args + ["-space", element], check)
+            for p in presets:
+                fixed = self.checked(name, variant, element, p, args + ["-space", element] + preset(p), check)
+                if default["status"] == "FAIL" and fixed["status"] != "FAIL":
+                    default["status"] = "fail -> " + p
+
+    def checked(self, name, variant, element, solver, args, check):
+        result = self.run.solve(args)
+        row = row_from(name, variant, element, solver, result)
+        check(row, result, element)
+        return self.add(row)
+
+
+def direct_check(runner, args):
+    """check(row, result, element) comparing u with the direct solve of the same discrete problem."""
+    cache = {}
+
+    def check(row, result, element):
+        if element not in cache:
+            ref = runner.solve(args + ["-space", element] + DIRECT)
+            cache[element] = ref["u"] if ref["rc"] == 0 and kkt_residual(ref["summary"], ref["u"]) <= TOL_KKT else None
+            if ref["rc"] != 0:
+                row["notes"].append("direct solve failed: " + ref["message"])
+        if result["u"] is not None:
+            compare(row, "direct", rel_diff(result["u"], cache[element]), TOL_DIRECT)
+    return check
+
+
+def contrast(rep, full):
+    cases = [("stiff-layers", [1e-9, 1e-6, 1.0, 1e6, 1e9, 1e12]), ("stiff-layers-across", [1e-6, 1e6]),
+             ("stiff-checkerboard", [1e-6, 1e6] + ([1e9] if full else []))]
+    for name, values in cases:
+        for K in values:
+            args = scene(name, ("1e6", "%g" % K))
+            rep.with_preset(name, "K=%g" % K, args, ["high-contrast"], direct_check(rep.run, args))
+
+
+def stretched(rep):
+    for name in ["stiff-stretched-2d", "stiff-stretched-3d"]:
+        args = scene(name)
+        rep.with_preset(name, "aspect 1e3", args, ["high-contrast"], direct_check(rep.run, args))
+
+
+def psi(rep):
+    args = scene("stiff-psi")
+    rep.with_preset("stiff-psi", "psi=0.1 sin(2 pi x)", args, [], direct_check(rep.run, args))
+
+
+def load_scaling(rep):
+    base = {}
+    for element in ELEMENTS:
+        r = rep.run.solve(scene("stiff-load", ("1e10", "1")) + ["-space", element])
+        base[element] = r if r["rc"] == 0 else None
+    for s in [1e-10, 1e-5, 1.0, 1e5, 1e10]:
+        def check(row, result, element, s=s):
+            b = base[element]
+            if result["summary"] is None:
+                return
+            if b is None:
+                require(row, False, "the s = 1 solve failed: nothing to compare with")
+                return
+            compare(row, "u(s)/s", rel_diff(result["u"], b["u"], s), TOL_EXACT)
+            e, e1 = result["summary"]["energy"], b["summary"]["energy"] * s * s
+            require(row, abs(e - e1) <= TOL_EXACT * abs(e1), "energy %.6e != s^2 J(1) = %.6e" % (e, e1))
+            n1 = b["summary"]["solver"]["newton_iterations"]
+            if row["newton"] > 2 * n1:
+                row["notes"].append("converged, but in %d Newton steps against %d for s = 1" % (row["newton"], n1))
+        extreme = s != 1.0 and abs(math.log10(s)) >= 10
+        rep.with_preset("stiff-load", "s=%g" % s, scene("stiff-load", ("1e10", "%g" % s)), ["load-scale"] if extreme else [], check)
+
+
+def obstacles(rep):
+    far = scene("stiff-obstacle-far")
+    linear = far + ["-bc_contact", "", "-bc_neumann", "1,2,4"]
+
+    def check_far(row, result, element):
+        if result["summary"] is None:
+            return
+        require(row, row["active"] == 0, "%d active contact DOFs, expected none" % row["active"])
+        ref = rep.run.solve(linear + ["-space", element])
+        compare(row, "linear", rel_diff(result["u"], ref["u"]) if ref["rc"] == 0 else None, TOL_EXACT * 10)
+    rep.with_preset("stiff-obstacle-far", "psi=-1", far, [], check_far)
+
+    above = scene("stiff-obstacle-above")
+    dirichlet = above + ["-bc_contact", "", "-bc_dirichlet", "1,3", "-u_D", "y < 0.5 ? 2 : 0"]
+
+    def check_above(row, result, element):
+        if result["summary"] is None:
+            return
+        require(row, row["active"] == row["contact_dofs"], "%d of %d contact DOFs active, expected all" % (row["active"], row["contact_dofs"]))
+        require(row, row["min_pressure"] > 0, "min pressure %.2e, expected > 0" % row["min_pressure"])
+        ref = rep.run.solve(dirichlet + ["-space", element])
+        compare(row, "dirichlet", rel_diff(result["u"], ref["u"]) if ref["rc"] == 0 else None, TOL_EXACT * 10)
+    rep.with_preset("stiff-obstacle-above", "psi=2", above, [], check_above)
+
+
+def switches(profile):
+    """Number of changes between contact (u - psi <= 1e-8 max(u - psi)) and no contact along Gamma_C, from a
+    contact profile sorted by coordinates (2D: along the side), or None if there is none."""
+    if not os.path.exists(profile):
+        return None
+    with open(profile) as f:
+        gaps = [float(r["u"]) - float(r["psi"]) for r in csv.DictReader(f)]
+    tol = 1e-8 * max(max(gaps), 1e-300)
+    active = [g <= tol for g in gaps]
+    return sum(a != b for a, b in zip(active, active[1:]))
+
+
+def study_rows(rep, name, variant, args, optimal=(2.0, 1.0)):
+    """One row per element from a convergence study: the finest level's figures, its errors against the reference
+    or exact solution, the observed rates (last two levels, and the least-squares slope over all) and the number
+    of switches of the contact set along Gamma_C on the finest level."""
+    r = rep.run.study(args, profiles=True)
+    if r["rc"] != 0:
+        for element in ELEMENTS:
+            rep.add({"scene": name, "variant": variant, "element": element, "solver": "default", "seconds": r["seconds"],
+                     "status": "FAIL", "check": "", "notes": [r["message"]]})
+        return
+    for element in ELEMENTS:
+        levels = [x for x in r["study"]["rows"] if x["element"] == element]
+        key = "error_reference" if "error_reference" in levels[-1] else "error_exact"
+        hs = [x["h"] for x in levels]
+        last = levels[-1]
+        row = {"scene": name, "variant": variant, "element": element, "solver": "default", "seconds": r["seconds"],
+               "status": "ok", "check": "", "notes": [], "dofs": last["dofs"], "newton": last["newton_iterations"],
+               "ksp": last["ksp_iterations"], "reason": last["converged_reason"], "active": last["active"],
+               "energy": last["energy"], "l2": last[key]["l2"], "h1": last[key]["h1"]}
+        for norm in ["l2", "h1"]:
+            errs = [x[key][norm] for x in levels]
+            row["rate_" + norm] = math.log(errs[-2] / errs[-1]) / math.log(hs[-2] / hs[-1])
+            row["fit_" + norm] = slope(hs, errs)
+        row["switches"] = switches(r["profiles"] % element)
+        row["check"] = "rates L2 %.2f H1 %.2f (fit %.2f / %.2f) vs %s, h %.3g..%.3g, %s switches" % (
+            row["rate_l2"], row["rate_h1"], row["fit_l2"], row["fit_h1"], key.split("_")[1], hs[0], hs[-1], row["switches"])
+        if row["rate_h1"] < 0.9 * optimal[1] or row["rate_l2"] < 0.9 * optimal[0]:
+            row["status"] = "lower rate"
+        rep.add(row)
+
+
+def slope(hs, errs):
+    xs, ys = [math.log(h) for h in hs], [math.log(e) for e in errs]
+    mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
+    return sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / sum((x - mx) ** 2 for x in xs)
+
+
+def critical_points(rep, full):
+    """f = 2 pi cos(2 pi k x): 2k switches (the scene); f = 2 pi sin(2 pi k x), the paper's load: far fewer."""
+    ks = [1, 2, 4, 8, 16, 32, 64] if full else [1, 4, 16]
+
+    def levels(k):
+        # the coarsest level has at least 2 cells per period 1/k (coarser ones alias the load), the reference
+        # is 4 times finer than the finest level
+        n0 = max(16, 2 * k)
+        return ["-box_faces", str(n0), "-study_levels", "4" if n0 == 16 else "3", "-reference_refine", "2"]
+    for k in ks:
+        study_rows(rep, "stiff-critical", "k=%d cos" % k, scene("stiff-critical", ("64", str(k))) + levels(k))
+    for k in (ks if full else [16]):
+        study_rows(rep, "stiff-critical", "k=%d sin (paper's load)" % k,
+                   scene("stiff-critical", ("cos(2*pi*64*x)", "sin(2*pi*%d*x)" % k)) + levels(k))
+
+
+def below_h2(rep):
+    levels = ["-refine", "1", "-study_levels", "4", "-reference_refine", "2"]
+    study_rows(rep, "stiff-below-h2", "D|C junction, f=-2pi cos", scene("stiff-below-h2") + levels)
+    # the same mesh and parts with contact next to the junction: there u = 0 on both sides, no singularity
+    study_rows(rep, "stiff-below-h2", "contact at junction, f=2pi sin", scene("stiff-below-h2") + levels + ["-f", "2*pi*sin(2*pi*x)"])
+
+
+def available_memory():
+    """MemAvailable of this machine in bytes (Linux), or None."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return None
+
+
+def finest(rep, budget_seconds=300.0, memory=24 * 2**30):
+    """Memory per DOF from two probe runs per (dimension, element), the largest uniform refinement predicted to
+    fit in `memory` on the runner's ranks, and a solve of the largest one that also fits the time budget and
+    60 % of the memory this machine has available now."""
+    usable = min(memory, 0.6 * (available_memory() or memory))
+    for name, base, probe in [("manufactured-2d", ["-box_faces", "64"], [2, 3]), ("manufactured-3d", ["-box_faces", "8"], [1, 2])]:
+        dim = 3 if name.endswith("3d") else 2
+        for element in ELEMENTS:
+            probes = []
+            for refine in probe:
+                r = rep.run.study(scene(name) + base + ["-refine", str(refine), "-study_levels", "1", "-study_spaces", element])
+                if r["rc"] == 0:
+                    x = r["study"]["rows"][0]
+                    probes.append((x["dofs"], x["peak_rss_bytes"], r["seconds"], refine))
+            if len(probes) < 2:
+                rep.add({"scene": name, "variant": "finest", "element": element, "solver": "default", "seconds": 0,
+                         "status": "FAIL", "check": "", "notes": ["probe runs failed"]})
+                continue
+            (d1, m1, _, _), (d2, m2, t2, r2) = probes
+            ranks = rep.run.ranks
+            per_dof = max((m2 - m1) / (d2 - d1) * ranks, 1.0)  # marginal bytes per DOF, all ranks together
+            fixed = m2 - per_dof * d2 / ranks                   # per rank, independent of the size
+            growth = 2 ** dim
+            fit_dofs = (memory / ranks - fixed) / per_dof * ranks
+            fit_refine = r2 + int(math.floor(math.log(fit_dofs / d2) / math.log(growth)))
+            refine, dofs, seconds = r2, d2, t2
+            while (fixed + per_dof * dofs * growth / ranks) * ranks <= usable and seconds * growth * 1.3 <= budget_seconds:
+                refine, dofs, seconds = refine + 1, dofs * growth, seconds * growth * 1.3
+            r = rep.run.study(scene(name) + base + ["-refine", str(refine), "-study_levels", "1", "-study_spaces", element])
+            row = {"scene": name, "variant": "finest (-refine %d)" % refine, "element": element, "solver": "default",
+                   "seconds": r["seconds"], "status": "ok" if r["rc"] == 0 else "FAIL", "check": "",
+                   "notes": [] if r["rc"] == 0 else [r["message"]]}
+            if r["rc"] == 0:
+                x = r["study"]["rows"][0]
+                row.update(dofs=x["dofs"], newton=x["newton_iterations"], ksp=x["ksp_iterations"], energy=x["energy"],
+                           l2=x["error_exact"]["l2"], h1=x["error_exact"]["h1"], peak_rss=x["peak_rss_bytes"],
+                           bytes_per_dof=x["peak_rss_bytes"] * ranks / x["dofs"])
+                row["check"] = ("peak %.2f GiB per rank = %.0f B/DOF (marginal %.0f B/DOF); 24 GiB on %d ranks holds "
+                                "about %.3g DOFs: %s -refine %d" % (x["peak_rss_bytes"] / 2**30, row["bytes_per_dof"],
+                                                                   per_dof, ranks, fit_dofs, " ".join(base), fit_refine))
+            rep.add(row)
+
+
+COLUMNS = ["scene", "variant", "element", "solver", "dofs", "newton", "ksp", "reason", "active", "contact_dofs", "min_gap",
+           "min_pressure", "max_pressure", "max_complementarity", "kkt", "stationarity", "energy", "l2", "h1", "rate_l2",
+           "rate_h1", "fit_l2", "fit_h1", "switches", "max_u", "peak_rss", "bytes_per_dof", "seconds", "status", "check", "notes"]
+
+
+def write_csv(rows, path):
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    with open(path + ".tmp", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=COLUMNS, extrasaction="ignore")
+        w.writeheader()
+        for r in rows:
+            w.writerow(dict(r, notes="; ".join(r["notes"])))
+    os.replace(path + ".tmp", path)
+
+
+def fmt(v, spec):
+    return "" if v is None else spec % v
+
+
+def print_table(rows):
+    head = "%-21s %-26s %-3s %-13s %8s %4s %5s %8s %8s %12s %9s %9s %-16s %6s  %s" % (
+        "scene", "variant", "el", "solver", "DOFs", "Nwt", "KSP", "KKT", "station", "energy", "L2", "H1", "status", "time", "check")
+    print(head)
+    print("-" * len(head))
+    for r in rows:
+        print("%-21s %-26s %-3s %-13s %8s %4s %5s %8s %8s %12s %9s %9s %-16s %6.1f  %s" % (
+            r["scene"], r["variant"][:26], r["element"], r["solver"], fmt(r.get("dofs"), "%d"), fmt(r.get("newton"), "%d"),
+            fmt(r.get("ksp"), "%d"), fmt(r.get("kkt"), "%.1e"), fmt(r.get("stationarity"), "%.1e"),
+            fmt(r.get("energy"), "%.5e"), fmt(r.get("l2"), "%.3e"), fmt(r.get("h1"), "%.3e"), r["status"], r["seconds"],
+            r["check"]))
+    notes = [(r, n) for r in rows for n in r["notes"]]
+    if notes:
+        print("\nnotes:")
+        for r, n in notes:
+            print("  %s %s %s %s: %s" % (r["scene"], r["variant"], r["element"], r["solver"], n))
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--ranks", type=int, default=2, help="MPI ranks per run (default 2)")
+    ap.add_argument("--csv", default=os.path.join(ROOT, "results", "stability.csv"))
+    ap.add_argument("--only", default="", help="run only the groups whose name contains this text: contrast, "
+                    "stretched, psi, load, obstacle, critical, below-h2, finest")
+    ap.add_argument("--full", action="store_true", help="k = 1 ... 64 for the critical points on finer meshes, K = 1e9 checkerboard")
+    ap.add_argument("--finest", action="store_true", help="also the finest meshes that fit in 24 GiB, with memory per DOF")
+    args = ap.parse_args()
+    groups = [("contrast", lambda rep: contrast(rep, args.full)), ("stretched", stretched), ("psi", psi),
+              ("load", load_scaling), ("obstacle", obstacles), ("critical", lambda rep: critical_points(rep, args.full)),
+              ("below-h2", below_h2)]
+    if args.finest or args.only == "finest":
+        groups.append(("finest", finest))
+    t0 = time.time()
+    with tempfile.TemporaryDirectory(prefix="stability-") as tmp:
+        rep = Report(Runner(args.ranks, tmp))
+        for name, group in groups:
+            if args.only in name:
+                print("running %s ..." % name, file=sys.stderr, flush=True)
+                group(rep)
+    print("Stability report (%d ranks, %s; %d runs in %.0f s). KKT: worst relative residual on Gamma_C; station: "
+          "max|r|/max|load| off Gamma_C; L2/H1: error vs exact or reference.\n" % (args.ranks, EXE, rep.run.count, time.time() - t0))
+    print_table(rep.rows)
+    write_csv(rep.rows, args.csv)
+    failed = [r for r in rep.rows if r["status"] == "FAIL"]
+    print("\n%d rows, %d ok, %d lower rate, %d fixed by a preset, %d FAIL; written to %s" % (
+        len(rep.rows), sum(r["status"] == "ok" for r in rep.rows), sum(r["status"] == "lower rate" for r in rep.rows),
+        sum(r["status"].startswith("fail ->") for r in rep.rows), len(failed), args.csv))
+    sys.exit(1 if failed else 0)
+
+
+if __name__ == "__main__":
+    main()
