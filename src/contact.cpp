@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
+#include <utility>
 
 namespace signorini {
 
@@ -27,8 +29,7 @@ PetscErrorCode Residual(SNES, Vec u, Vec F, void *ctx)
 PetscErrorCode ConstantJacobian(SNES, Vec, Mat, Mat, void *) { return 0; }
 } // namespace
 
-// psi at contact DOFs, -infinity elsewhere; and the boundary measure each contact DOF carries.
-static PetscErrorCode ContactVectors(const Space &space, const Problem &problem, Vec lower, Vec measure)
+PetscErrorCode ContactLowerBound(const Space &space, const Problem &problem, Vec lower)
 {
   Vec          loc;
   PetscScalar *a;
@@ -39,8 +40,19 @@ static PetscErrorCode ContactVectors(const Space &space, const Problem &problem,
   for (PetscInt i = 0; i < space.numLocal; ++i) a[i] = space.kindLocal[i] == kContact ? problem.psi->Scalar(&space.dofPoint[i * space.dim], space.dim, error) : PETSC_NINFINITY;
   PetscCall(VecRestoreArray(loc, &a));
   PetscCall(DMLocalToGlobal(space.dm, loc, INSERT_VALUES, lower));
+  PetscCall(DMRestoreLocalVector(space.dm, &loc));
   PetscCall(CheckAll(PetscObjectComm((PetscObject)space.dm), error.empty(), error));
+  PetscFunctionReturn(0);
+}
 
+// psi at contact DOFs, -infinity elsewhere; and the boundary measure each contact DOF carries.
+static PetscErrorCode ContactVectors(const Space &space, const Problem &problem, Vec lower, Vec measure)
+{
+  Vec          loc;
+  PetscScalar *a;
+  PetscFunctionBeginUser;
+  PetscCall(ContactLowerBound(space, problem, lower));
+  PetscCall(DMGetLocalVector(space.dm, &loc));
   PetscCall(VecSet(loc, 0));
   PetscCall(VecGetArray(loc, &a));
   for (const BoundaryFace &bf : space.boundary) {
@@ -58,6 +70,39 @@ static PetscErrorCode ContactVectors(const Space &space, const Problem &problem,
   PetscFunctionReturn(0);
 }
 
+// BoomerAMG options suited to the Poisson-type operators here (the 2D and 3D recommendations of the hypre
+// documentation): HMIS coarsening with extended+i interpolation truncated to 4 entries per row keeps the
+// operator complexity low, and in 3D one level of aggressive coarsening makes the set-up, which each
+// active set needs, about three times cheaper at the price of more, cheaper CG iterations. They go into
+// the options database only where the user gave none, so every -pc_hypre_boomeramg_* option still
+// decides; `inserted` lists what was added, for AmgDefaultsRemoveUnused.
+static PetscErrorCode AmgDefaultsInsert(PetscInt dim, std::vector<std::string> &inserted)
+{
+  const std::pair<const char *, const char *> all[] = {{"-pc_hypre_boomeramg_coarsen_type", "HMIS"}, {"-pc_hypre_boomeramg_interp_type", "ext+i"}, {"-pc_hypre_boomeramg_P_max", "4"}, {"-pc_hypre_boomeramg_agg_nl", dim == 3 ? "1" : "0"}};
+  PetscFunctionBeginUser;
+  for (const auto &o : all) {
+    PetscBool set;
+    PetscCall(PetscOptionsHasName(NULL, NULL, o.first, &set));
+    if (set) continue;
+    PetscCall(PetscOptionsSetValue(NULL, o.first, o.second));
+    inserted.push_back(o.first);
+  }
+  PetscFunctionReturn(0);
+}
+
+// Defaults that nothing read (the user chose another preconditioner) leave the database again, so that
+// they are not reported as unused options.
+static PetscErrorCode AmgDefaultsRemoveUnused(const std::vector<std::string> &inserted)
+{
+  PetscFunctionBeginUser;
+  for (const std::string &name : inserted) {
+    PetscBool used;
+    PetscCall(PetscOptionsUsed(NULL, name.c_str(), &used));
+    if (!used) PetscCall(PetscOptionsClearValue(NULL, name.c_str()));
+  }
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode ConfigureKSP(KSP ksp)
 {
   PC pc;
@@ -67,6 +112,7 @@ static PetscErrorCode ConfigureKSP(KSP ksp)
   PetscCall(PCSetType(pc, PCHYPRE));
   PetscCall(PCHYPRESetType(pc, "boomeramg"));
   PetscCall(KSPSetTolerances(ksp, 1e-10, 1e-50, PETSC_DEFAULT, 1000));
+  PetscCall(KSPSetNormType(ksp, KSP_NORM_UNPRECONDITIONED));
   PetscFunctionReturn(0);
 }
 
@@ -88,7 +134,51 @@ static PetscErrorCode SolveLinear(const System &sys, Vec u, SolveResult &r)
   PetscFunctionReturn(0);
 }
 
-static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &r)
+PetscErrorCode SolveOptionsFromCommandLine(MPI_Comm comm, SolveOptions &o)
+{
+  PetscBool compare = o.compareLinear ? PETSC_TRUE : PETSC_FALSE;
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(comm, "", "Solve", "signorini");
+  PetscCall(PetscOptionsBool("-compare_linear", "After the solve, time one linear solve of the same operator and right-hand side (same KSP/PC options) for comparison", "", compare, &compare, NULL));
+  PetscOptionsEnd();
+  o.compareLinear = compare;
+  PetscCall(AmgReuseOptionsFromCommandLine(comm, o.amgReuse));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ProjectOntoConstraints(const System &sys, const std::vector<PetscInt> &dirichletOwned, Vec lower, Vec u)
+{
+  PetscScalar       *a;
+  const PetscScalar *d;
+  PetscFunctionBeginUser;
+  PetscCall(VecGetArray(u, &a));
+  PetscCall(VecGetArrayRead(sys.uD, &d));
+  for (PetscInt i : dirichletOwned) a[i] = d[i];
+  PetscCall(VecRestoreArrayRead(sys.uD, &d));
+  PetscCall(VecRestoreArray(u, &a));
+  if (lower) PetscCall(VecPointwiseMax(u, u, lower));
+  PetscFunctionReturn(0);
+}
+
+// The residual norm the solve from u_D starts with (SNESVI's norm of F = A u - b on the inactive set, at
+// u_D projected onto the bounds). Its rtol is relative to this; a solve from a better initial guess stops
+// at the same absolute residual, so the guess saves work without changing the discrete solution.
+static PetscErrorCode StraightStartNorm(SNES snes, const System &sys, Vec lower, PetscReal *fnorm)
+{
+  Vec u0, F0;
+  PetscFunctionBeginUser;
+  PetscCall(VecDuplicate(sys.uD, &u0));
+  PetscCall(VecDuplicate(sys.uD, &F0));
+  PetscCall(VecPointwiseMax(u0, sys.uD, lower));
+  PetscCall(MatMult(sys.A, u0, F0));
+  PetscCall(VecAXPY(F0, -1.0, sys.b));
+  PetscCall(SNESVIComputeInactiveSetFnorm(snes, F0, u0, fnorm));
+  PetscCall(VecDestroy(&u0));
+  PetscCall(VecDestroy(&F0));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &r, const SolveOptions &opts)
 {
   SNES                snes;
   KSP                 ksp;
@@ -107,7 +197,30 @@ static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &
   PetscCall(SNESSetTolerances(snes, PETSC_DEFAULT, 1e-9, 1e-14, 200, PETSC_DEFAULT));
   PetscCall(SNESGetKSP(snes, &ksp));
   PetscCall(ConfigureKSP(ksp));
+  PetscCall(AmgReuseInstall(snes, opts.amgReuse, &r.amg));
   PetscCall(SNESSetFromOptions(snes));
+  PetscReal atol, rtol, stol;
+  PetscInt  maxit, maxf;
+  PetscCall(SNESGetTolerances(snes, &atol, &rtol, &stol, &maxit, &maxf));
+  if (opts.snesRtol >= 0) rtol = opts.snesRtol;
+  // The residual the solve has to reach: rtol relative to the start from u_D, whatever the start.
+  PetscReal f0;
+  PetscCall(StraightStartNorm(snes, sys, lower, &f0));
+  const PetscReal target = PetscMax(atol, rtol * f0);
+  if (opts.initialGuess) {
+    // relative to the guess's own residual, which may be larger (a prolongated guess carries the
+    // interpolation error), rtol would stop earlier than the start from u_D: the target alone decides
+    atol = target;
+    rtol = 0;
+  }
+  PetscCall(SNESSetTolerances(snes, atol, rtol, stol, maxit, maxf));
+  // Inexact Newton: the problem is linear on the inactive set, so once the active set is right, one step
+  // whose linear residual is below the target ends the solve; solving further would be wasted. The KSP
+  // measures the true (unpreconditioned) residual, which is what the SNES test sees after the step.
+  PetscReal kspRtol, kspAtol, kspDtol;
+  PetscInt  kspMaxit;
+  PetscCall(KSPGetTolerances(ksp, &kspRtol, &kspAtol, &kspDtol, &kspMaxit));
+  PetscCall(KSPSetTolerances(ksp, kspRtol, PetscMax(kspAtol, 0.5 * target), kspDtol, kspMaxit));
   PetscCall(VecPointwiseMax(u, u, lower)); // start inside K_h
   PetscCall(SNESSolve(snes, NULL, u));
   PetscCall(SNESGetConvergedReason(snes, &reason));
@@ -267,22 +380,61 @@ PetscErrorCode SolverOptionsHelp(MPI_Comm comm)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode Solve(const Space &space, const Problem &problem, const System &sys, Vec u, SolveResult &r)
+// One CG + BoomerAMG solve of A x = b from x = 0, configured like the VI's inner KSP (ConfigureKSP, then
+// the same -ksp_ and -pc_ options): the cost of a linear solve of the same operator to the same
+// tolerance, measured in the same run, to compare the contact solve with.
+static PetscErrorCode TimeLinearSolve(const System &sys, SolveResult &r)
 {
-  Vec lower = nullptr, measure = nullptr;
+  MPI_Comm       comm = PetscObjectComm((PetscObject)sys.A);
+  KSP            ksp;
+  Vec            x;
+  PetscLogDouble t0, t1;
   PetscFunctionBeginUser;
+  PetscCall(VecDuplicate(sys.b, &x));
+  PetscCall(VecSet(x, 0));
+  PetscCall(KSPCreate(comm, &ksp));
+  PetscCall(KSPSetOperators(ksp, sys.A, sys.A));
+  PetscCall(ConfigureKSP(ksp));
+  PetscCall(KSPSetFromOptions(ksp));
+  PetscCallMPI(MPI_Barrier(comm));
+  PetscCall(PetscTime(&t0));
+  PetscCall(KSPSolve(ksp, sys.b, x)); // includes the preconditioner set-up
+  PetscCallMPI(MPI_Barrier(comm));
+  PetscCall(PetscTime(&t1));
+  PetscCall(KSPGetIterationNumber(ksp, &r.linearKspIts));
+  PetscCall(KSPDestroy(&ksp));
+  PetscCall(VecDestroy(&x));
+  r.linearSeconds = t1 - t0;
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &r.linearSeconds, 1, MPI_DOUBLE, MPI_MAX, comm));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Solve(const Space &space, const Problem &problem, const System &sys, Vec u, SolveResult &r, const SolveOptions &opts)
+{
+  MPI_Comm       comm  = PetscObjectComm((PetscObject)u);
+  Vec            lower = nullptr, measure = nullptr;
+  PetscLogDouble t0, t1;
+  std::vector<std::string> amgDefaults;
+  PetscFunctionBeginUser;
+  PetscCall(AmgDefaultsInsert(space.dim, amgDefaults));
   PetscCall(StagePush(Stage::Solve));
-  PetscCall(VecCopy(sys.uD, u));
+  PetscCall(PetscTime(&t0));
   r.vi = problem.HasContact();
   if (r.vi) {
     PetscCall(VecDuplicate(u, &lower));
     PetscCall(VecDuplicate(u, &measure));
     PetscCall(ContactVectors(space, problem, lower, measure));
-    PetscCall(SolveVI(sys, lower, u, r));
-  } else {
-    PetscCall(SolveLinear(sys, u, r));
   }
+  if (opts.initialGuess) PetscCall(ProjectOntoConstraints(sys, space.dirichletOwned, lower, u));
+  else PetscCall(VecCopy(sys.uD, u));
+  if (r.vi) PetscCall(SolveVI(sys, lower, u, r, opts));
+  else PetscCall(SolveLinear(sys, u, r));
+  PetscCall(PetscTime(&t1));
+  r.solveSeconds = t1 - t0;
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &r.solveSeconds, 1, MPI_DOUBLE, MPI_MAX, comm));
   PetscCall(StagePop(Stage::Solve));
+  if (opts.compareLinear) PetscCall(TimeLinearSolve(sys, r));
+  PetscCall(AmgDefaultsRemoveUnused(amgDefaults));
   PetscCall(MeasureKKT(space, sys, u, lower, measure, r));
   PetscCall(DiscreteEnergy(space, sys, u, &r.energy));
   PetscCall(VecDestroy(&lower));

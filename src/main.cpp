@@ -11,6 +11,7 @@ static const char help[] =
 #include "signorini/contact.h"
 #include "signorini/error.h"
 #include "signorini/mesh.h"
+#include "signorini/nested.h"
 #include "signorini/output.h"
 #include "signorini/problem.h"
 #include "signorini/report.h"
@@ -32,6 +33,8 @@ struct Settings {
   std::string     summaryFile;
   OutputOptions   output;
   StudyOptions    study;
+  SolveOptions    solve;
+  NestedOptions   nested;
 };
 
 static PetscErrorCode ReadSettings(MPI_Comm comm, Settings &s)
@@ -45,6 +48,8 @@ static PetscErrorCode ReadSettings(MPI_Comm comm, Settings &s)
   PetscCall(ReportOptionsFromCommandLine(comm, s.summaryFile));
   PetscCall(OutputOptionsFromCommandLine(comm, s.output));
   PetscCall(StudyOptionsFromCommandLine(comm, s.study));
+  PetscCall(SolveOptionsFromCommandLine(comm, s.solve));
+  PetscCall(NestedOptionsFromCommandLine(comm, s.nested));
   PetscFunctionReturn(0);
 }
 
@@ -78,7 +83,10 @@ static PetscErrorCode Run(MPI_Comm comm)
   }
 
   // mesh -> space -> assembly -> solve -> errors -> report -> output
-  PetscCall(MeshCreate(comm, s.mesh, &mesh, meshInfo));
+  // Nested iteration needs the coarser levels of the refinement; a scene without contact is one linear solve.
+  const bool nested = s.nested.enabled && s.mesh.refine > 0 && s.nested.levels != 0 && s.study.levels == 0 && !s.problem.contact.empty();
+  MeshLevels levels;
+  PetscCall(MeshCreate(comm, s.mesh, &mesh, meshInfo, nested ? &levels : nullptr, s.nested.levels));
   PetscInt dim;
   PetscCall(DMGetDimension(mesh, &dim));
   PetscCall(ProblemSetUp(comm, dim, s.problem));
@@ -92,13 +100,22 @@ static PetscErrorCode Run(MPI_Comm comm)
     PetscCall(DMDestroy(&mesh));
     PetscFunctionReturn(0);
   }
+  PetscLogDouble t0, t1;
+  PetscCall(PetscTime(&t0));
   PetscCall(StagePush(Stage::Setup));
   PetscCall(SpaceCreate(mesh, s.element, s.problem, space));
   PetscCall(StagePop(Stage::Setup));
   PetscCall(AssembleSystem(space, s.problem, s.assembly, sys));
   PetscCall(DMCreateGlobalVector(space.dm, &u));
   PetscCall(PetscObjectSetName((PetscObject)u, "u"));
-  PetscCall(Solve(space, s.problem, sys, u, report.solve));
+  PetscCall(PetscTime(&t1));
+  if (nested) {
+    PetscCall(NestedSolve(levels, s.problem, s.assembly, space, sys, u, report.solve, s.solve));
+    double setup = t1 - t0;
+    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &setup, 1, MPI_DOUBLE, MPI_MAX, comm));
+    report.solve.levels.back().setupSeconds = setup; // the finest level's space and assembly
+  } else PetscCall(Solve(space, s.problem, sys, u, report.solve, s.solve));
+  PetscCall(MeshLevelsDestroy(levels));
   if (s.problem.HasExact()) PetscCall(ErrorAgainstExact(space, s.problem, u, s.errorDegree, report.error));
 
   report.scene         = s.problem.scene;

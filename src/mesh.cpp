@@ -378,7 +378,15 @@ PetscErrorCode MeshRefine(DM coarse, DM *fine, std::vector<PetscInt> *parent)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &o, DM *dm, MeshInfo &info)
+PetscErrorCode MeshLevelsDestroy(MeshLevels &levels)
+{
+  PetscFunctionBeginUser;
+  for (DM &l : levels.dm) PetscCall(DMDestroy(&l));
+  levels = MeshLevels();
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &o, DM *dm, MeshInfo &info, MeshLevels *levels, PetscInt keep)
 {
   PetscMPIInt size;
   PetscInt    cStart, cEnd;
@@ -412,13 +420,27 @@ PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &o, DM *dm, MeshInfo 
   PetscCall(StagePop(Stage::Distribute));
 
   PetscCall(StagePush(Stage::Refine));
+  // Level k (0 = distributed coarse mesh) is kept when it is among the `keep` levels below the fine one.
+  const PetscInt first = levels ? (keep < 0 ? 0 : PetscMax(0, o.refine - keep)) : o.refine;
+  if (levels) {
+    PetscCall(MeshLevelsDestroy(*levels));
+    levels->parent.emplace_back();
+  }
   for (PetscInt k = 0; k < o.refine; ++k) {
-    DM fine = nullptr;
-    PetscCall(MeshRefine(*dm, &fine, nullptr));
-    PetscCall(DMDestroy(dm));
+    DM                    fine = nullptr;
+    std::vector<PetscInt> parent;
+    PetscCall(MeshRefine(*dm, &fine, k >= first ? &parent : nullptr));
+    if (k >= first) {
+      levels->dm.push_back(*dm); // the level's reference moves into `levels`
+      levels->parent.push_back(std::move(parent));
+    } else PetscCall(DMDestroy(dm));
     *dm = fine;
   }
   PetscCall(PetscObjectSetName((PetscObject)*dm, "mesh"));
+  if (levels) {
+    PetscCall(PetscObjectReference((PetscObject)*dm));
+    levels->dm.push_back(*dm);
+  }
   PetscCall(StagePop(Stage::Refine));
 
   PetscCall(DMPlexGetHeightStratum(*dm, 0, &cStart, &cEnd));

@@ -83,10 +83,16 @@ PetscErrorCode ReportPrint(MPI_Comm comm, const Report &r)
   o << Format("scene %s: element %s, %dD, mesh %s, refine %d: %d cells, %d DOFs (%d Dirichlet, %d contact), %d rank(s)\n", r.scene.c_str(), r.element.c_str(), (int)r.dim, r.mesh.c_str(), (int)r.refine, (int)r.cells, (int)r.dofs, (int)r.dirichletDofs, (int)r.contactDofs, (int)r.ranks);
   if (r.solve.vi) {
     o << Format("  solve: SNESVI %s, %d Newton / %d KSP iterations\n", r.solve.reason.c_str(), (int)r.solve.newtonIts, (int)r.solve.kspIts);
+    if (r.solve.amg.setups + r.solve.amg.reuses > 0) o << Format("  BoomerAMG set up %d times, re-used in %d Newton steps\n", (int)r.solve.amg.setups, (int)r.solve.amg.reuses);
+    for (size_t l = 0; l < r.solve.levels.size(); ++l) {
+      const SolveResult::Level &v = r.solve.levels[l];
+      o << Format("  nested level %d: %d DOFs, %d Newton / %d KSP iterations, set-up %.3f s, solve %.3f s\n", (int)l, (int)v.dofs, (int)v.newtonIts, (int)v.kspIts, v.setupSeconds, v.solveSeconds);
+    }
     o << Format("  KKT on Gamma_C: min(u-psi) %.3e, min pressure %.3e, max |(u-psi) pressure| %.3e, active %d of %d\n", (double)r.solve.primal, (double)r.solve.dual, (double)r.solve.complementarity, (int)r.solve.active, (int)r.contactDofs);
   } else {
     o << Format("  solve: KSP %s, %d iterations (no contact part: linear solve)\n", r.solve.reason.c_str(), (int)r.solve.kspIts);
   }
+  if (r.solve.linearSeconds >= 0) o << Format("  solve %.3f s, one linear CG + BoomerAMG solve of the same A, b %.3f s (%d iterations): ratio %.2f\n", r.solve.solveSeconds, r.solve.linearSeconds, (int)r.solve.linearKspIts, r.solve.solveSeconds / r.solve.linearSeconds);
   o << Format("  stationarity max|r| / max|load| on free DOFs %.3e, energy J(u_h) = %.12e\n", (double)r.solve.stationarity, (double)r.solve.energy);
   if (r.hasExact) o << Format("  error vs exact: L2 %.6e, broken H1 seminorm %.6e, H1 %.6e\n", (double)r.error.l2, (double)r.error.h1semi, (double)r.error.h1);
   o << "  time [s]:";
@@ -147,7 +153,21 @@ PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string
   o << "  \"ranks\": " << r.ranks << ",\n  \"edge_cut\": " << r.edgeCut << ",\n  \"cells_per_rank\": [";
   for (size_t i = 0; i < r.cellsPerRank.size(); ++i) o << (i ? ", " : "") << r.cellsPerRank[i];
   o << "],\n  \"load_quadrature\": " << Str(r.loadRule) << ",\n";
-  o << "  \"solver\": {\"type\": " << Str(r.solve.vi ? "snesvi" : "ksp") << ", \"converged_reason\": " << Str(r.solve.reason) << ", \"newton_iterations\": " << r.solve.newtonIts << ", \"ksp_iterations\": " << r.solve.kspIts << "},\n";
+  o << "  \"solver\": {\"type\": " << Str(r.solve.vi ? "snesvi" : "ksp") << ", \"converged_reason\": " << Str(r.solve.reason) << ", \"newton_iterations\": " << r.solve.newtonIts << ", \"ksp_iterations\": " << r.solve.kspIts;
+  o << ", \"solve_seconds\": " << Num(r.solve.solveSeconds) << ", \"nested\": " << (r.solve.levels.empty() ? "false" : "true");
+  if (r.solve.vi) o << ", \"amg_setups\": " << r.solve.amg.setups << ", \"amg_reuses\": " << r.solve.amg.reuses;
+  if (!r.solve.levels.empty()) {
+    PetscInt newton = 0, ksp = 0;
+    o << ", \"levels\": [";
+    for (size_t l = 0; l < r.solve.levels.size(); ++l) {
+      const SolveResult::Level &v = r.solve.levels[l];
+      newton += v.newtonIts, ksp += v.kspIts;
+      o << (l ? ", " : "") << "{\"dofs\": " << v.dofs << ", \"newton\": " << v.newtonIts << ", \"ksp\": " << v.kspIts << ", \"amg_setups\": " << v.amgSetups << ", \"setup_seconds\": " << Num(v.setupSeconds) << ", \"seconds\": " << Num(v.solveSeconds) << "}";
+    }
+    o << "], \"newton_iterations_total\": " << newton << ", \"ksp_iterations_total\": " << ksp;
+  }
+  if (r.solve.linearSeconds >= 0) o << ", \"linear_solve_seconds\": " << Num(r.solve.linearSeconds) << ", \"linear_ksp_iterations\": " << r.solve.linearKspIts << ", \"solve_linear_ratio\": " << Num(r.solve.solveSeconds / r.solve.linearSeconds);
+  o << "},\n";
   if (r.solve.vi)
     o << "  \"kkt\": {\"min_gap\": " << Num(r.solve.primal) << ", \"min_pressure\": " << Num(r.solve.dual) << ", \"max_complementarity\": " << Num(r.solve.complementarity) << ", \"max_pressure\": " << Num(r.solve.pressureMax) << ", \"max_gap\": " << Num(r.solve.gapMax) << ", \"active\": " << r.solve.active << "},\n";
   o << "  \"stationarity\": " << Num(r.solve.stationarity) << ",\n  \"energy\": " << Num(r.solve.energy) << ",\n";

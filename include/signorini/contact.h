@@ -8,6 +8,7 @@
 // for P1), which approximates the contact pressure kappa du/dn and does not change with the mesh size.
 #pragma once
 
+#include "signorini/amgreuse.h"
 #include "signorini/assembly.h"
 
 namespace signorini {
@@ -24,14 +25,42 @@ struct SolveResult {
   PetscInt  active = 0; // contact DOFs with u = psi
   PetscReal stationarity = 0; // max |r| over DOFs that are neither Dirichlet nor contact, relative to max |load|
   PetscReal energy = 0;
+  // Nested iteration: one entry per level solved, coarsest first, the finest (this solve) last; empty
+  // without nested iteration. newtonIts/kspIts above are the finest level's.
+  struct Level {
+    PetscInt dofs = 0, newtonIts = 0, kspIts = 0, amgSetups = 0;
+    double   setupSeconds = 0, solveSeconds = 0; // space + assembly, and the solve (prolongation included)
+  };
+  std::vector<Level> levels;
+  double             solveSeconds  = 0;  // the whole contact solve (all levels' solves), max over ranks
+  double             linearSeconds = -1; // -compare_linear: one CG + BoomerAMG solve of A u = b (-1: not run)
+  PetscInt           linearKspIts  = 0;
+  AmgReuseStats      amg;                // BoomerAMG set-ups and re-uses in the contact solve (all levels)
 };
+
+struct SolveOptions {
+  bool      initialGuess  = false; // u holds an initial guess (e.g. prolongated from a coarser level)
+  bool      compareLinear = false; // -compare_linear: also time one linear solve of A u = b
+  PetscReal snesRtol      = -1;    // SNES rtol override for this solve (< 0: defaults and options decide)
+  AmgReuseOptions amgReuse;
+};
+PetscErrorCode SolveOptionsFromCommandLine(MPI_Comm comm, SolveOptions &o);
 
 // With -help: lists the SNES, KSP and PC options of the default solver without solving anything.
 PetscErrorCode SolverOptionsHelp(MPI_Comm comm);
 // Writes u_h, psi and the contact pressure at every contact DOF as CSV (x, y[, z], u, psi, pressure),
 // sorted by coordinates, gathered on rank 0: the free boundary seen along Gamma_C.
 PetscErrorCode WriteContactProfile(const Space &space, const Problem &problem, const System &sys, Vec u, const std::string &file);
-// u: global vector of the space, overwritten with the solution. Pushes the Solve stage.
-PetscErrorCode Solve(const Space &space, const Problem &problem, const System &sys, Vec u, SolveResult &result);
+// psi at contact DOFs and -infinity elsewhere (a global vector of the space): the lower bound of K_h.
+PetscErrorCode ContactLowerBound(const Space &space, const Problem &problem, Vec lower);
+// Makes u admissible: u = u_D (sys.uD) on the Dirichlet DOFs (owned indices), u = max(u, lower) elsewhere
+// (lower may be null: no contact part).
+PetscErrorCode ProjectOntoConstraints(const System &sys, const std::vector<PetscInt> &dirichletOwned, Vec lower, Vec u);
+// u: global vector of the space, overwritten with the solution. Without opts.initialGuess the solve starts
+// from u_D (projected onto K_h); with it, from u with its Dirichlet DOFs set to u_D and its contact DOFs
+// projected onto u >= psi. Either way the solve stops at the same absolute residual, the one the
+// start from u_D would reach (its SNES rtol times its initial residual), so that a good initial guess
+// saves work without changing the discrete solution beyond solver tolerance. Pushes the Solve stage.
+PetscErrorCode Solve(const Space &space, const Problem &problem, const System &sys, Vec u, SolveResult &result, const SolveOptions &opts = SolveOptions());
 
 } // namespace signorini

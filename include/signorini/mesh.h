@@ -45,7 +45,19 @@ PetscErrorCode MeshSize(DM dm, PetscReal *hmax);
 // `coarse` (as c - cStart) that fine cell cStart + c came from: the nested-mesh map used to evaluate a
 // coarse function on the fine mesh.
 PetscErrorCode MeshRefine(DM coarse, DM *fine, std::vector<PetscInt> *parent);
+// The nested meshes of the refinement, for nested iteration: dm[0] is the distributed coarse mesh (or the
+// coarsest kept level), dm.back() the fine mesh MeshCreate returns (one more reference to it), and
+// parent[l] (l >= 1) maps the cells of level l to their parent cells in level l - 1 (as in MeshRefine).
+struct MeshLevels {
+  std::vector<DM>                    dm;
+  std::vector<std::vector<PetscInt>> parent;
+  PetscInt                           Count() const { return (PetscInt)dm.size(); }
+};
+PetscErrorCode MeshLevelsDestroy(MeshLevels &levels);
+
 // Collective: builds, partitions, distributes and refines; pushes the Mesh, Distribute and Refine stages.
-PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &opts, DM *dm, MeshInfo &info);
+// With `levels`, also keeps the coarser levels (at most `keep` below the fine mesh; -1: all of them) and
+// their parent maps instead of dropping them.
+PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &opts, DM *dm, MeshInfo &info, MeshLevels *levels = nullptr, PetscInt keep = -1);
 
 } // namespace signorini

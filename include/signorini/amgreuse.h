@@ -1,0 +1,49 @@
+// The linear solves inside the Newton steps of the reduced-space VI solver (SNESVINEWTONRSLS): re-use of
+// the algebraic multigrid set-up across steps, and inexact steps while the active set still moves.
+//
+// Every Newton step solves a system with the inactive-set block A_II of the stiffness matrix, and a plain
+// BoomerAMG preconditioner is set up again for every new block. Between late steps the inactive set
+// usually changes in a few DOFs near the free boundary only, so this shell preconditioner keeps the
+// BoomerAMG of a reference block A_RR and applies, on the current set I,
+//
+//   P^{-1} = [ (A_RR^{-1} restricted to I and R)   0        ]   DOFs in I and R
+//            [ 0                                   D^{-1}   ]   DOFs in I, not in R (Jacobi)
+//
+// which is symmetric positive definite (a principal block of an SPD operator plus a positive diagonal)
+// and differs from a preconditioner built for A_II by a perturbation of rank about the number of changed
+// DOFs: CG pays roughly one to two iterations per changed DOF instead of a new set-up.
+//
+// Policy, per Newton step:
+//  - the active set still moves (more than maxChanged DOFs changed since the previous step, or this is
+//    the first step): the step only has to show where the set goes next, so its solve stops at the
+//    relative tolerance inexactRtol and re-uses the current set-up whatever changed;
+//  - the active set has settled: the solve goes to the KSP's own tolerances, with a new set-up if the
+//    reference block differs from the current one in more than maxChanged DOFs;
+//  - a re-used set-up whose last solve needed more than twice the iterations per digit of the solve right
+//    after its set-up is replaced in any case.
+// The discrete solution does not depend on any of this: the SNES stops at the same residual.
+//
+// The BoomerAMG inside reads the usual -pc_hypre_* options. An explicit -pc_type replaces the shell and
+// restores PETSc's behaviour (a new preconditioner for every block, every step to the KSP tolerance).
+#pragma once
+
+#include <petscsnes.h>
+
+namespace signorini {
+
+struct AmgReuseOptions {
+  bool      enabled     = true; // -amg_reuse (off: a new set-up every step)
+  PetscInt  maxChanged  = 2;    // -amg_reuse_max_changed: "changed" means more DOFs than this (global count)
+  PetscReal inexactRtol = 1e-1; // -vi_inexact_rtol (0: every step to the KSP tolerances)
+};
+PetscErrorCode AmgReuseOptionsFromCommandLine(MPI_Comm comm, AmgReuseOptions &o);
+
+struct AmgReuseStats {
+  PetscInt setups = 0, reuses = 0; // BoomerAMG set-ups, and Newton steps that re-used one
+};
+
+// Makes the PC of the SNES's KSP this shell (before SNESSetFromOptions, so that -pc_type still overrides
+// it). The SNES must be of type SNESVINEWTONRSLS. `stats` must outlive the SNES.
+PetscErrorCode AmgReuseInstall(SNES snes, const AmgReuseOptions &o, AmgReuseStats *stats);
+
+} // namespace signorini

@@ -1,0 +1,42 @@
+// Nested iteration for the contact solve: the problem is solved on the coarsest mesh of the refinement
+// hierarchy first, each solution is prolongated to the next finer mesh (values and active set) and
+// projected onto its constraints, and serves there as the initial guess, up to the finest mesh. The
+// active set is then nearly right before the first Newton step on the finest mesh, so the number of
+// Newton steps there stays small as the mesh is refined. Every level stops at the absolute residual its
+// own solve from u_D would reach (see Solve), so the final discrete solution is the same to solver
+// tolerance as without nested iteration.
+#pragma once
+
+#include "signorini/contact.h"
+#include "signorini/mesh.h"
+
+namespace signorini {
+
+struct NestedOptions {
+  bool     enabled = true; // -nested: used when there is a contact part and a coarser level (-refine > 0)
+  PetscInt levels  = -1;   // -nested_levels: coarse levels solved before the finest one (-1: every refinement level)
+};
+PetscErrorCode NestedOptionsFromCommandLine(MPI_Comm comm, NestedOptions &o);
+
+// Prolongation P from the space on a mesh (coarse) to the same kind of space on its uniform refinement
+// (fine), parent[c] = the coarse cell (c - cStart) containing fine cell c: uh = P uH interpolates the
+// coarse function at the fine DOF points (vertices for P1, face centroids for CR). P1 functions are
+// reproduced exactly; a CR function is reproduced exactly inside every coarse cell, and at fine faces on
+// a coarse face, where it may jump, uh takes the mean of the two sides. Parallel: refinement is local,
+// so every fine cell's parent is on the same rank. uh is not yet projected onto the constraints.
+PetscErrorCode Prolongate(const Space &coarse, Vec uH, const Space &fine, const std::vector<PetscInt> &parent, Vec uh);
+
+// Active-set transfer: a fine contact DOF whose point lies on coarse contact DOFs that are all active
+// (uH = psi there: the coarse vertices of the smallest coarse face containing it for P1, the coarse face
+// containing it for CR) gets uh = psi (lowerh). The prolongated values alone would leave half of them off
+// the obstacle for CR (its restriction to a contact face is only zero at the face's centroid).
+PetscErrorCode TransferActiveSet(const Space &coarse, Vec uH, Vec lowerH, const Space &fine, const std::vector<PetscInt> &parent, Vec lowerh, Vec uh);
+
+// The whole contact solve with nested iteration: levels.dm[0 .. Count()-2] are solved (each with its own
+// space and system, created and destroyed here) and prolongated, and the finest level, whose space and
+// system the caller owns, is solved from the last prolongation into u. result receives the finest solve
+// plus one entry per level in result.levels (the finest level's set-up time is the caller's to fill) and
+// the time of all solves together in result.solveSeconds.
+PetscErrorCode NestedSolve(const MeshLevels &levels, const Problem &problem, const AssemblyOptions &assembly, const Space &fine, const System &fineSys, Vec u, SolveResult &result, const SolveOptions &opts);
+
+} // namespace signorini

@@ -1,0 +1,232 @@
+#include "signorini/amgreuse.h"
+#include "signorini/common.h"
+
+#include <vector>
+
+namespace signorini {
+
+PetscErrorCode AmgReuseOptionsFromCommandLine(MPI_Comm comm, AmgReuseOptions &o)
+{
+  PetscBool enabled = o.enabled ? PETSC_TRUE : PETSC_FALSE;
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(comm, "", "Linear solves of the Newton steps of the contact solve", "signorini");
+  PetscCall(PetscOptionsBool("-amg_reuse", "Keep the BoomerAMG set-up across Newton steps while the inactive set changes little (off: a new set-up every step)", "", enabled, &enabled, NULL));
+  PetscCall(PetscOptionsReal("-vi_inexact_rtol", "Relative tolerance of the linear solves of Newton steps whose active set still moves (0: every step to the KSP tolerance)", "", o.inexactRtol, &o.inexactRtol, NULL));
+  PetscCall(PetscOptionsInt("-amg_reuse_max_changed", "Set BoomerAMG up anew once more than this many DOFs left or joined the inactive set since its last set-up", "", o.maxChanged, &o.maxChanged, NULL));
+  PetscOptionsEnd();
+  o.enabled = enabled;
+  if (!(o.inexactRtol >= 0 && o.inexactRtol < 1)) SIGNORINI_INPUT_ERROR(comm, "option -vi_inexact_rtol: must be in [0, 1), got %g", (double)o.inexactRtol);
+  if (o.maxChanged < 0) SIGNORINI_INPUT_ERROR(comm, "option -amg_reuse_max_changed: must be >= 0, got %" PetscInt_FMT, o.maxChanged);
+  PetscFunctionReturn(0);
+}
+
+namespace {
+struct Reuse {
+  SNES            snes = nullptr;
+  AmgReuseOptions opts;
+  AmgReuseStats  *stats = nullptr;
+  PC              amg   = nullptr;        // BoomerAMG of the reference block
+  std::vector<PetscInt> ref;              // the reference inactive set (owned global indices, ascending)
+  std::vector<PetscInt> map;              // per local entry of the current set: its position in ref, or -1
+  bool            same = true;            // current set == reference set
+  std::vector<PetscInt> prev;             // the previous Newton step's inactive set
+  bool            havePrev = false;
+  PetscReal       tightRtol = -1;         // the KSP's own rtol, for steps whose active set has settled
+  bool            fresh = true;           // the current step uses a BoomerAMG set up for it
+  PetscReal       rateFresh = 0, rateLast = 0; // residual reduction per CG iteration: after a set-up, and last step
+  Vec             rRef = nullptr, zRef = nullptr, diag = nullptr;
+};
+
+PetscErrorCode ReuseDestroy(PC pc)
+{
+  Reuse *r;
+  PetscFunctionBeginUser;
+  PetscCall(PCShellGetContext(pc, &r));
+  PetscCall(PCDestroy(&r->amg));
+  PetscCall(VecDestroy(&r->rRef));
+  PetscCall(VecDestroy(&r->zRef));
+  PetscCall(VecDestroy(&r->diag));
+  delete r;
+  PetscFunctionReturn(0);
+}
+
+// Position of each entry of cur in ref (both ascending), -1 if absent; returns how many entries are in
+// one set only.
+PetscInt MatchSets(const PetscInt *cur, PetscInt n, const std::vector<PetscInt> &ref, std::vector<PetscInt> &map)
+{
+  map.assign(n, -1);
+  PetscInt i = 0, j = 0, common = 0;
+  const PetscInt m = (PetscInt)ref.size();
+  while (i < n && j < m) {
+    if (cur[i] == ref[j]) map[i++] = j++, ++common;
+    else if (cur[i] < ref[j]) ++i;
+    else ++j;
+  }
+  return (n - common) + (m - common);
+}
+
+PetscErrorCode BuildAmg(PC pc, Reuse &r, Mat P, const PetscInt *cur, PetscInt n)
+{
+  const char *prefix;
+  PetscFunctionBeginUser;
+  PetscCall(PCDestroy(&r.amg));
+  PetscCall(VecDestroy(&r.rRef));
+  PetscCall(VecDestroy(&r.zRef));
+  PetscCall(PCCreate(PetscObjectComm((PetscObject)pc), &r.amg));
+  PetscCall(PCGetOptionsPrefix(pc, &prefix));
+  PetscCall(PCSetOptionsPrefix(r.amg, prefix));
+  PetscCall(PCSetType(r.amg, PCHYPRE));
+  PetscCall(PCHYPRESetType(r.amg, "boomeramg"));
+  PetscCall(PCSetFromOptions(r.amg));
+  PetscCall(PCSetOperators(r.amg, P, P));
+  PetscCall(PCSetUp(r.amg));
+  PetscCall(MatCreateVecs(P, &r.rRef, &r.zRef));
+  r.ref.assign(cur, cur + n);
+  r.map.resize(n);
+  for (PetscInt k = 0; k < n; ++k) r.map[k] = k;
+  r.same  = true;
+  r.fresh = true;
+  if (r.stats) r.stats->setups++;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ReuseSetUp(PC pc)
+{
+  Reuse          *r;
+  Mat             A, P;
+  IS              inactive;
+  Vec             x;
+  const PetscInt *cur;
+  PetscInt        n, N;
+  PetscBool       sorted;
+  PetscFunctionBeginUser;
+  PetscCall(PCShellGetContext(pc, &r));
+  MPI_Comm comm = PetscObjectComm((PetscObject)pc);
+  PetscCall(PCGetOperators(pc, &A, &P));
+  PetscCall(SNESVIGetInactiveSet(r->snes, &inactive));
+  PetscCheck(inactive, comm, PETSC_ERR_ORDER, "the re-using AMG preconditioner works inside SNESVINEWTONRSLS only");
+  PetscCall(SNESGetSolution(r->snes, &x));
+  PetscCall(VecGetSize(x, &N));
+  PetscCall(ISGetLocalSize(inactive, &n));
+  PetscCall(ISSorted(inactive, &sorted));
+  PetscCall(ISGetIndices(inactive, &cur));
+  std::vector<PetscInt> unused;
+  PetscInt changed = r->amg ? MatchSets(cur, n, r->ref, r->map) : N;
+  PetscInt moved   = r->havePrev ? MatchSets(cur, n, r->prev, unused) : N;
+  PetscInt local[3] = {changed, moved, sorted ? 0 : 1}, global[3];
+  PetscCallMPI(MPI_Allreduce(local, global, 3, MPIU_INT, MPI_SUM, comm));
+  r->prev.assign(cur, cur + n);
+  r->havePrev = true;
+  // Inexact steps: while the active set still moves, a step only has to show where it moves next, so
+  // its linear solve stops at inexactRtol; once it has settled, the solve goes to the KSP's tolerances.
+  KSP       ksp;
+  PetscReal rtol, atol, dtol;
+  PetscInt  maxit;
+  PetscCall(SNESGetKSP(r->snes, &ksp));
+  PetscCall(KSPGetTolerances(ksp, &rtol, &atol, &dtol, &maxit));
+  if (r->tightRtol < 0) r->tightRtol = rtol;
+  const bool loose = r->opts.inexactRtol > 0 && global[1] > r->opts.maxChanged;
+  PetscCall(KSPSetTolerances(ksp, loose ? PetscMax(r->opts.inexactRtol, r->tightRtol) : r->tightRtol, atol, dtol, maxit));
+  // A re-used set-up whose last solve needed more than twice the iterations per digit of a fresh one
+  // (rate > sqrt(rate after a set-up)) has drifted too far from the current block.
+  // (see amgreuse.h for the policy)
+  const bool drifted = !r->fresh && r->rateLast > PetscSqrtReal(r->rateFresh);
+  if (!r->amg || !r->opts.enabled || global[2] > 0 || drifted || (!loose && global[0] > r->opts.maxChanged)) PetscCall(BuildAmg(pc, *r, P, cur, n));
+  else {
+    r->same  = global[0] == 0;
+    r->fresh = false;
+    if (r->stats) r->stats->reuses++;
+  }
+  PetscCall(ISRestoreIndices(inactive, &cur));
+  PetscCall(VecDestroy(&r->diag));
+  PetscCall(MatCreateVecs(P, &r->diag, NULL));
+  PetscCall(MatGetDiagonal(P, r->diag));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ReuseApply(PC pc, Vec x, Vec y)
+{
+  Reuse             *r;
+  const PetscScalar *xa, *za, *da;
+  PetscScalar       *ya, *ra;
+  PetscFunctionBeginUser;
+  PetscCall(PCShellGetContext(pc, &r));
+  if (r->same) {
+    PetscCall(PCApply(r->amg, x, y));
+    PetscFunctionReturn(0);
+  }
+  const PetscInt n = (PetscInt)r->map.size();
+  PetscCall(VecSet(r->rRef, 0));
+  PetscCall(VecGetArrayRead(x, &xa));
+  PetscCall(VecGetArray(r->rRef, &ra));
+  for (PetscInt k = 0; k < n; ++k)
+    if (r->map[k] >= 0) ra[r->map[k]] = xa[k];
+  PetscCall(VecRestoreArray(r->rRef, &ra));
+  PetscCall(PCApply(r->amg, r->rRef, r->zRef));
+  PetscCall(VecGetArrayRead(r->zRef, &za));
+  PetscCall(VecGetArrayRead(r->diag, &da));
+  PetscCall(VecGetArray(y, &ya));
+  for (PetscInt k = 0; k < n; ++k) ya[k] = r->map[k] >= 0 ? za[r->map[k]] : xa[k] / da[k];
+  PetscCall(VecRestoreArray(y, &ya));
+  PetscCall(VecRestoreArrayRead(r->diag, &da));
+  PetscCall(VecRestoreArrayRead(r->zRef, &za));
+  PetscCall(VecRestoreArrayRead(x, &xa));
+  PetscFunctionReturn(0);
+}
+
+// Records how fast CG converged with the current set-up: (final / initial residual)^(1 / iterations).
+PetscErrorCode ReusePostSolve(PC pc, KSP ksp, Vec b, Vec)
+{
+  Reuse    *r;
+  PetscInt  its;
+  PetscReal rnorm, bnorm;
+  PetscFunctionBeginUser;
+  PetscCall(PCShellGetContext(pc, &r));
+  PetscCall(KSPGetIterationNumber(ksp, &its));
+  PetscCall(KSPGetResidualNorm(ksp, &rnorm));
+  PetscCall(VecNorm(b, NORM_2, &bnorm));
+  if (its == 0 || !(bnorm > 0)) PetscFunctionReturn(0);
+  const PetscReal rate = PetscPowReal(PetscMin(rnorm / bnorm, 1.0), 1.0 / its);
+  r->rateLast = rate;
+  if (r->fresh) r->rateFresh = rate;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ReuseView(PC pc, PetscViewer viewer)
+{
+  Reuse *r;
+  PetscFunctionBeginUser;
+  PetscCall(PCShellGetContext(pc, &r));
+  PetscCall(PetscViewerASCIIPrintf(viewer, "BoomerAMG re-used while at most %" PetscInt_FMT " DOFs changed between inactive sets%s\n", r->opts.maxChanged, r->same ? "" : " (now re-used for a changed set)"));
+  if (r->amg) {
+    PetscCall(PetscViewerASCIIPushTab(viewer));
+    PetscCall(PCView(r->amg, viewer));
+    PetscCall(PetscViewerASCIIPopTab(viewer));
+  }
+  PetscFunctionReturn(0);
+}
+} // namespace
+
+PetscErrorCode AmgReuseInstall(SNES snes, const AmgReuseOptions &o, AmgReuseStats *stats)
+{
+  KSP ksp;
+  PC  pc;
+  PetscFunctionBeginUser;
+  auto *r  = new Reuse;
+  r->snes  = snes;
+  r->opts  = o;
+  r->stats = stats;
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(KSPGetPC(ksp, &pc));
+  PetscCall(PCSetType(pc, PCSHELL));
+  PetscCall(PCShellSetContext(pc, r));
+  PetscCall(PCShellSetName(pc, "BoomerAMG re-used across active sets"));
+  PetscCall(PCShellSetSetUp(pc, ReuseSetUp));
+  PetscCall(PCShellSetApply(pc, ReuseApply));
+  PetscCall(PCShellSetView(pc, ReuseView));
+  PetscCall(PCShellSetPostSolve(pc, ReusePostSolve));
+  PetscCall(PCShellSetDestroy(pc, ReuseDestroy));
+  PetscFunctionReturn(0);
+}
+
+} // namespace signorini

@@ -1,0 +1,268 @@
+#include "signorini/nested.h"
+#include "signorini/stages.h"
+
+#include <cmath>
+
+namespace signorini {
+
+PetscErrorCode NestedOptionsFromCommandLine(MPI_Comm comm, NestedOptions &o)
+{
+  PetscBool enabled = o.enabled ? PETSC_TRUE : PETSC_FALSE;
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(comm, "", "Nested iteration", "signorini");
+  PetscCall(PetscOptionsBool("-nested", "Solve on the coarser refinement levels first and start each level from the prolongated coarser solution", "", enabled, &enabled, NULL));
+  PetscCall(PetscOptionsInt("-nested_levels", "Coarse levels solved before the finest one (-1: all refinement levels)", "", o.levels, &o.levels, NULL));
+  PetscOptionsEnd();
+  o.enabled = enabled;
+  if (o.levels < -1) SIGNORINI_INPUT_ERROR(comm, "option -nested_levels: must be >= 0, or -1 for all levels, got %" PetscInt_FMT, o.levels);
+  PetscFunctionReturn(0);
+}
+
+namespace {
+// Barycentric coordinates of x with respect to a cell of the given geometry and first vertex X0.
+void Barycentric(PetscInt dim, const CellGeometry &g, const PetscReal *X0, const PetscReal *x, PetscReal *lambda)
+{
+  PetscReal sum = 0;
+  for (PetscInt k = 1; k <= dim; ++k) {
+    lambda[k] = 0;
+    for (PetscInt d = 0; d < dim; ++d) lambda[k] += g.gradLambda[k][d] * (x[d] - X0[d]);
+    sum += lambda[k];
+  }
+  lambda[0] = 1 - sum;
+}
+
+// Calls f(c, i, dof, lambda) for every DOF i of every fine cell c, with lambda the barycentric
+// coordinates of the DOF's point in the parent cell.
+template <class F>
+void ForEachFineDof(const Space &coarse, const Space &fine, const std::vector<PetscInt> &parent, F f)
+{
+  PetscReal lambda[4];
+  for (PetscInt c = 0; c < fine.NumCells(); ++c) {
+    const PetscInt pc = parent[c];
+    CellGeometry   g;
+    ComputeCellGeometry(coarse.dim, coarse.X(pc), g);
+    for (PetscInt i = 0; i < fine.Nb(); ++i) {
+      const PetscInt dof = fine.Dofs(c)[i];
+      Barycentric(coarse.dim, g, coarse.X(pc), &fine.dofPoint[dof * fine.dim], lambda);
+      f(pc, dof, lambda);
+    }
+  }
+}
+} // namespace
+
+PetscErrorCode Prolongate(const Space &coarse, Vec uH, const Space &fine, const std::vector<PetscInt> &parent, Vec uh)
+{
+  Vec                locH, sum, count, countGlobal;
+  const PetscScalar *aH;
+  PetscScalar       *s, *n;
+  PetscFunctionBeginUser;
+  PetscCheck((PetscInt)parent.size() == fine.NumCells(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "parent map has %d entries for %d fine cells", (int)parent.size(), (int)fine.NumCells());
+  PetscCheck(coarse.element == fine.element, PETSC_COMM_SELF, PETSC_ERR_ARG_INCOMP, "prolongation between different elements");
+  PetscCall(DMGetLocalVector(coarse.dm, &locH));
+  PetscCall(DMGlobalToLocal(coarse.dm, uH, INSERT_VALUES, locH));
+  PetscCall(DMGetLocalVector(fine.dm, &sum));
+  PetscCall(DMGetLocalVector(fine.dm, &count));
+  PetscCall(DMGetGlobalVector(fine.dm, &countGlobal));
+  PetscCall(VecSet(sum, 0));
+  PetscCall(VecSet(count, 0));
+  PetscCall(VecGetArrayRead(locH, &aH));
+  PetscCall(VecGetArray(sum, &s));
+  PetscCall(VecGetArray(count, &n));
+  // Each fine cell adds the value of its parent's function at each of its DOF points, and a count; the
+  // sums over all cells (and ranks) divided by the counts give the value, or, for a CR DOF on a coarse
+  // face, the mean of the two sides with equal weights: exactly one fine cell on each side holds that
+  // fine face. The mean is the usual choice (it does not prefer either cell and keeps affine functions,
+  // which are continuous, exact); the sums make it independent of which rank owns the DOF.
+  ForEachFineDof(coarse, fine, parent, [&](PetscInt pc, PetscInt dof, const PetscReal *lambda) {
+    PetscReal v = 0;
+    for (PetscInt j = 0; j < coarse.Nb(); ++j) v += PetscRealPart(aH[coarse.Dofs(pc)[j]]) * coarse.BasisValue(pc, j, lambda);
+    s[dof] += v;
+    n[dof] += 1;
+  });
+  PetscCall(VecRestoreArray(count, &n));
+  PetscCall(VecRestoreArray(sum, &s));
+  PetscCall(VecRestoreArrayRead(locH, &aH));
+  PetscCall(VecSet(uh, 0));
+  PetscCall(VecSet(countGlobal, 0));
+  PetscCall(DMLocalToGlobal(fine.dm, sum, ADD_VALUES, uh));
+  PetscCall(DMLocalToGlobal(fine.dm, count, ADD_VALUES, countGlobal));
+  PetscCall(VecPointwiseDivide(uh, uh, countGlobal));
+  PetscCall(DMRestoreGlobalVector(fine.dm, &countGlobal));
+  PetscCall(DMRestoreLocalVector(fine.dm, &count));
+  PetscCall(DMRestoreLocalVector(fine.dm, &sum));
+  PetscCall(DMRestoreLocalVector(coarse.dm, &locH));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TransferActiveSet(const Space &coarse, Vec uH, Vec lowerH, const Space &fine, const std::vector<PetscInt> &parent, Vec lowerh, Vec uh)
+{
+  Vec                locU, locL, flag, flagGlobal;
+  const PetscScalar *aU, *aL, *fl, *lh;
+  PetscScalar       *f, *a;
+  PetscReal          umax;
+  PetscFunctionBeginUser;
+  // Active: u = psi up to round-off relative to the size of u (the solver projects active DOFs onto psi).
+  PetscCall(VecNorm(uH, NORM_INFINITY, &umax));
+  const PetscReal tol = 1e-10 * PetscMax(1.0, umax), eps = 1e-10;
+  PetscCall(DMGetLocalVector(coarse.dm, &locU));
+  PetscCall(DMGetLocalVector(coarse.dm, &locL));
+  PetscCall(DMGlobalToLocal(coarse.dm, uH, INSERT_VALUES, locU));
+  PetscCall(DMGlobalToLocal(coarse.dm, lowerH, INSERT_VALUES, locL));
+  PetscCall(DMGetLocalVector(fine.dm, &flag));
+  PetscCall(VecSet(flag, 0));
+  PetscCall(VecGetArrayRead(locU, &aU));
+  PetscCall(VecGetArrayRead(locL, &aL));
+  PetscCall(VecGetArray(flag, &f));
+  ForEachFineDof(coarse, fine, parent, [&](PetscInt pc, PetscInt dof, const PetscReal *lambda) {
+    if (fine.kindLocal[dof] != kContact) return;
+    bool active = true;
+    for (PetscInt j = 0; j < coarse.Nb(); ++j) {
+      // P1: vertex j supports the point if lambda_j > 0; CR: face j contains it if lambda_{K(j)} = 0.
+      const bool on = coarse.element == Element::P1 ? lambda[j] > eps : std::fabs(lambda[coarse.K(pc, j)]) < eps;
+      const PetscInt J = coarse.Dofs(pc)[j];
+      if (on) active = active && coarse.kindLocal[J] == kContact && PetscRealPart(aU[J] - aL[J]) <= tol;
+    }
+    if (active) f[dof] = 1;
+  });
+  PetscCall(VecRestoreArray(flag, &f));
+  PetscCall(VecRestoreArrayRead(locL, &aL));
+  PetscCall(VecRestoreArrayRead(locU, &aU));
+  PetscCall(DMRestoreLocalVector(coarse.dm, &locL));
+  PetscCall(DMRestoreLocalVector(coarse.dm, &locU));
+  // Every cell that sees a DOF makes the same decision (it depends only on where the point lies in the
+  // coarse mesh), so summing the flags over ranks only makes the owner see them.
+  PetscCall(DMGetGlobalVector(fine.dm, &flagGlobal));
+  PetscCall(VecSet(flagGlobal, 0));
+  PetscCall(DMLocalToGlobal(fine.dm, flag, ADD_VALUES, flagGlobal));
+  PetscCall(DMRestoreLocalVector(fine.dm, &flag));
+  PetscCall(VecGetArrayRead(flagGlobal, &fl));
+  PetscCall(VecGetArrayRead(lowerh, &lh));
+  PetscCall(VecGetArray(uh, &a));
+  for (PetscInt i = 0; i < fine.numOwned; ++i)
+    if (PetscRealPart(fl[i]) > 0) a[i] = lh[i];
+  PetscCall(VecRestoreArray(uh, &a));
+  PetscCall(VecRestoreArrayRead(lowerh, &lh));
+  PetscCall(VecRestoreArrayRead(flagGlobal, &fl));
+  PetscCall(DMRestoreGlobalVector(fine.dm, &flagGlobal));
+  PetscFunctionReturn(0);
+}
+
+namespace {
+// One coarse level: its space, system, solution and lower bound.
+struct Level {
+  Space  space;
+  System sys;
+  Vec    u = nullptr, lower = nullptr;
+  PetscErrorCode Destroy()
+  {
+    PetscFunctionBeginUser;
+    PetscCall(VecDestroy(&u));
+    PetscCall(VecDestroy(&lower));
+    PetscCall(SystemDestroy(sys));
+    PetscCall(SpaceDestroy(space));
+    PetscFunctionReturn(0);
+  }
+};
+
+double MaxOverRanks(MPI_Comm comm, double t)
+{
+  MPI_Allreduce(MPI_IN_PLACE, &t, 1, MPI_DOUBLE, MPI_MAX, comm);
+  return t;
+}
+
+// uh = prolongation of the coarse level's solution with its active set, made admissible on the fine level.
+// Part of the Solve stage; `seconds` is its wall time (max over ranks).
+PetscErrorCode ProlongateLevel(const Level &coarse, const Space &fine, const System &fineSys, const std::vector<PetscInt> &parent, const Problem &problem, Vec uh, double &seconds)
+{
+  Vec            lowerh;
+  PetscLogDouble t0, t1;
+  PetscFunctionBeginUser;
+  PetscCall(PetscTime(&t0));
+  PetscCall(StagePush(Stage::Solve));
+  PetscCall(Prolongate(coarse.space, coarse.u, fine, parent, uh));
+  PetscCall(VecDuplicate(uh, &lowerh));
+  PetscCall(ContactLowerBound(fine, problem, lowerh));
+  PetscCall(TransferActiveSet(coarse.space, coarse.u, coarse.lower, fine, parent, lowerh, uh));
+  PetscCall(ProjectOntoConstraints(fineSys, fine.dirichletOwned, lowerh, uh));
+  PetscCall(VecDestroy(&lowerh));
+  PetscCall(StagePop(Stage::Solve));
+  PetscCall(PetscTime(&t1));
+  seconds = MaxOverRanks(PetscObjectComm((PetscObject)uh), t1 - t0);
+  PetscFunctionReturn(0);
+}
+
+// Space, system, solution vector and lower bound of a coarse level (Setup and Assemble stages).
+PetscErrorCode SetUpLevel(DM dm, Element element, const Problem &problem, const AssemblyOptions &assembly, Level &level, double &seconds)
+{
+  PetscLogDouble t0, t1;
+  PetscFunctionBeginUser;
+  PetscCall(PetscTime(&t0));
+  PetscCall(StagePush(Stage::Setup));
+  PetscCall(SpaceCreate(dm, element, problem, level.space));
+  PetscCall(StagePop(Stage::Setup));
+  PetscCall(AssembleSystem(level.space, problem, assembly, level.sys));
+  PetscCall(DMCreateGlobalVector(level.space.dm, &level.u));
+  PetscCall(VecDuplicate(level.u, &level.lower));
+  PetscCall(ContactLowerBound(level.space, problem, level.lower));
+  PetscCall(PetscTime(&t1));
+  seconds = MaxOverRanks(PetscObjectComm((PetscObject)dm), t1 - t0);
+  PetscFunctionReturn(0);
+}
+
+SolveResult::Level LevelSummary(const Space &space, const SolveResult &r, double setupSeconds, double prolongSeconds)
+{
+  SolveResult::Level info;
+  info.dofs         = space.numGlobal;
+  info.newtonIts    = r.newtonIts;
+  info.kspIts       = r.kspIts;
+  info.amgSetups    = r.amg.setups;
+  info.setupSeconds = setupSeconds;
+  info.solveSeconds = r.solveSeconds + prolongSeconds;
+  return info;
+}
+} // namespace
+
+PetscErrorCode NestedSolve(const MeshLevels &levels, const Problem &problem, const AssemblyOptions &assembly, const Space &fine, const System &fineSys, Vec u, SolveResult &r, const SolveOptions &opts)
+{
+  const PetscInt                  L = levels.Count();
+  Level                           prev;
+  std::vector<SolveResult::Level> summary;
+  AmgReuseStats                   amg;
+  PetscFunctionBeginUser;
+  PetscCheck(L >= 1, PetscObjectComm((PetscObject)u), PETSC_ERR_ARG_WRONG, "nested iteration needs at least the fine level");
+  for (PetscInt l = 0; l + 1 < L; ++l) {
+    Level        cur;
+    SolveResult  lr;
+    double       setupSeconds = 0, prolongSeconds = 0;
+    SolveOptions lo  = opts; // the user's solver settings, without the linear comparison (finest level only)
+    lo.compareLinear = false;
+    lo.initialGuess  = l > 0;
+    PetscCall(SetUpLevel(levels.dm[l], fine.element, problem, assembly, cur, setupSeconds));
+    if (l > 0) {
+      PetscCall(ProlongateLevel(prev, cur.space, cur.sys, levels.parent[l], problem, cur.u, prolongSeconds));
+      PetscCall(prev.Destroy());
+    }
+    PetscCall(Solve(cur.space, problem, cur.sys, cur.u, lr, lo));
+    summary.push_back(LevelSummary(cur.space, lr, setupSeconds, prolongSeconds));
+    amg.setups += lr.amg.setups;
+    amg.reuses += lr.amg.reuses;
+    prev = std::move(cur);
+  }
+  SolveOptions fo = opts;
+  double       prolongSeconds = 0;
+  if (L > 1) {
+    PetscCall(ProlongateLevel(prev, fine, fineSys, levels.parent[L - 1], problem, u, prolongSeconds));
+    PetscCall(prev.Destroy());
+    fo.initialGuess = true;
+  }
+  PetscCall(Solve(fine, problem, fineSys, u, r, fo));
+  summary.push_back(LevelSummary(fine, r, 0, prolongSeconds)); // the caller knows the finest set-up time
+  r.solveSeconds = 0;
+  for (const SolveResult::Level &s : summary) r.solveSeconds += s.solveSeconds;
+  r.levels = std::move(summary);
+  r.amg.setups += amg.setups;
+  r.amg.reuses += amg.reuses;
+  PetscFunctionReturn(0);
+}
+
+} // namespace signorini
