@@ -1,0 +1,209 @@
+"""Benchmark: cost of every stage, per DOF, for P1 and CR on growing meshes, with the contact (VI) solve
+compared with one plain CG + BoomerAMG solve of the same operator measured in the same run.
+
+  run/bench [--dims 2,3] [--elements p1,cr] [--n2 256,512,1024,2048] [--n3 12,24,48,96] [--ranks P]
+            [--presets] [--out DIR] [signorini options...]
+  run/bench --quick            # small sizes only (a minute): checks that everything runs
+
+Scenes: paper-5.1 in 2D (N x N squares), paper-5.1-3d in 3D (N x N x N cubes, 6 tetrahedra each).
+Each run's summary JSON and -log_view are kept in DIR (default results/bench). Prints one row per run:
+DOFs, Newton steps on the finest level (and in all levels of nested iteration), KSP iterations, the
+-log_view stages, set-up (mesh + distribute + refine + setup + assemble), the ratio VI solve / linear
+solve, microseconds per DOF (set-up + solve) and bytes per DOF (peak RSS, summed over ranks); then the
+issue's targets with the measured figures. Writes bench.csv and time-per-dof.png.
+With --presets, also runs every option file of petsc-options/solvers on one mid-size mesh per dimension."""
+import argparse
+import csv
+import glob
+import json
+import os
+import subprocess
+import sys
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+EXE = os.path.join(ROOT, "build", "signorini")
+STAGES = ["mesh", "distribute", "refine", "setup", "assemble", "solve"]
+SETUP = ["mesh", "distribute", "refine", "setup", "assemble"]
+ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+
+
+def mesh_args(dim, N):
+    """The coarse box is built on one rank with 8 (2D) or 6 (3D) cells per side and refined in parallel;
+    an N that is not such a multiple of a power of 2 is built directly."""
+    base, refine = (8 if dim == 2 else 6), 0
+    while (base << (refine + 1)) <= N:
+        refine += 1
+    if base << refine != N:
+        base, refine = N, 0
+    return ["-box_faces", str(base), "-refine", str(refine)]
+
+
+def run_case(dim, element, N, ranks, out_dir, extra, preset=None):
+    scene = "paper-5.1" if dim == 2 else "paper-5.1-3d"
+    tag = "%dd-%s-N%d-np%d%s" % (dim, element, N, ranks, "-" + os.path.basename(preset) if preset else "")
+    summary, log = os.path.join(out_dir, tag + ".json"), os.path.join(out_dir, tag + ".log")
+    cmd = [EXE, "-options_file", os.path.join(ROOT, "petsc-options", scene), "-space", element] + mesh_args(dim, N)
+    if preset:
+        cmd += ["-options_file", preset]
+    cmd += ["-compare_linear", "-summary", summary, "-log_view", ":" + log] + list(extra)
+    if ranks > 1:
+        cmd = ["mpirun", "--oversubscribe", "-n", str(ranks)] + cmd
+    p = subprocess.run(cmd, capture_output=True, text=True, env=ENV)
+    if p.returncode != 0 or not os.path.exists(summary):
+        sys.stderr.write(p.stdout + p.stderr)
+        return {"scene": scene, "dim": dim, "element": element, "N": N, "ranks": ranks, "preset": preset, "status": "failed (exit %d)" % p.returncode}
+    with open(summary) as f:
+        s = json.load(f)
+    return row_from_summary(s, dim, element, N, ranks, preset)
+
+
+def row_from_summary(s, dim, element, N, ranks, preset):
+    solver, t = s["solver"], s["time"]
+    setup = sum(t.get(k, 0.0) for k in SETUP)
+    dofs = s["dofs"]
+    memory = s.get("memory", {})
+    rss = memory.get("peak_rss_bytes_sum")
+    row = {
+        "scene": s["scene"], "dim": dim, "element": element, "N": N, "ranks": ranks,
+        "preset": os.path.basename(preset) if preset else "default", "dofs": dofs,
+        "newton": solver.get("newton_iterations"), "newton_total": solver.get("newton_iterations_total", solver.get("newton_iterations")),
+        "ksp": solver.get("ksp_iterations_total", solver.get("ksp_iterations")), "reason": solver.get("converged_reason"),
+        "setup_total_s": setup, "solve_s": t["solve"], "linear_s": solver.get("linear_solve_seconds"),
+        "ratio": solver.get("solve_linear_ratio"), "energy": s.get("energy"),
+        "us_per_dof": 1e6 * (setup + t["solve"]) / dofs,
+        "bytes_per_dof": rss / dofs if rss else None,
+        "matrix_bytes_per_dof": memory.get("matrix_bytes") / dofs if memory.get("matrix_bytes") else None,
+        "status": "ok",
+    }
+    for k in STAGES:
+        row[k + "_s"] = t.get(k, 0.0)
+    return row
+
+
+def cell(v, spec, width):
+    return (format(v, spec) if isinstance(v, (int, float)) and v is not None else "-").rjust(width)
+
+
+def header():
+    head = "%-3s %-4s %-13s %5s %10s %6s %5s %6s" % ("dim", "elem", "preset", "N", "DOFs", "Newton", "all", "KSP")
+    return head + "".join("%9s" % k[:8] for k in STAGES) + "%9s %9s %6s %8s %8s  %s" % ("set-up", "linear", "VI/lin", "us/DOF", "B/DOF", "status")
+
+
+def line(r):
+    text = "%-3s %-4s %-13s %5d" % ("%dD" % r["dim"], r["element"], r.get("preset", "default")[:13], r["N"])
+    if r["status"] != "ok":
+        return text + "  " + r["status"]
+    text += cell(r["dofs"], "d", 11) + cell(r["newton"], "d", 7) + cell(r["newton_total"], "d", 6) + cell(r["ksp"], "d", 7)
+    text += "".join(cell(r[k + "_s"], ".3f", 9) for k in STAGES)
+    text += cell(r["setup_total_s"], ".3f", 9) + cell(r["linear_s"], ".3f", 10) + cell(r["ratio"], ".2f", 7)
+    return text + cell(r["us_per_dof"], ".2f", 9) + cell(r["bytes_per_dof"], ".0f", 9) + "  " + r["status"]
+
+
+def print_table(rows):
+    print(header())
+    for r in rows:
+        print(line(r))
+
+
+def print_targets(rows):
+    """The issue's targets against what was measured (default solver only)."""
+    ok = [r for r in rows if r["status"] == "ok" and r.get("preset", "default") == "default"]
+    if not ok:
+        return
+    print("\ntargets (default solver):")
+    for r in ok:
+        checks = []
+        if r["ratio"] is not None:
+            checks.append("VI/linear %.2f %s 2" % (r["ratio"], "<=" if r["ratio"] <= 2 else ">"))
+        if r["N"] >= 64 or r["dim"] == 3:
+            checks.append("finest Newton %d %s 3" % (r["newton"], "<=" if r["newton"] <= 3 else ">"))
+        if r["linear_s"]:
+            checks.append("set-up/linear %.2f %s 1" % (r["setup_total_s"] / r["linear_s"], "<=" if r["setup_total_s"] <= r["linear_s"] else ">"))
+        if r["bytes_per_dof"] and r["element"] == "cr":
+            checks.append("%.0f B/DOF %s 600" % (r["bytes_per_dof"], "<=" if r["bytes_per_dof"] <= 600 else ">"))
+        print("  %dD %s N=%-5d %9d DOFs: %s" % (r["dim"], r["element"], r["N"], r["dofs"], "; ".join(checks)))
+
+
+def write_csv(rows, path):
+    keys = ["scene", "dim", "element", "preset", "N", "ranks", "dofs", "newton", "newton_total", "ksp", "reason"] + [k + "_s" for k in STAGES]
+    keys += ["setup_total_s", "linear_s", "ratio", "us_per_dof", "bytes_per_dof", "matrix_bytes_per_dof", "energy", "status"]
+    tmp = path + ".tmp"
+    with open(tmp, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=keys, extrasaction="ignore")
+        w.writeheader()
+        for r in rows:
+            w.writerow(r)
+    os.replace(tmp, path)
+
+
+def plot(rows, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for dim in (2, 3):
+        for element, marker in (("p1", "o"), ("cr", "s")):
+            rs = [r for r in rows if r["status"] == "ok" and r["dim"] == dim and r["element"] == element and r.get("preset", "default") == "default"]
+            if not rs:
+                continue
+            rs.sort(key=lambda r: r["dofs"])
+            style = "-" if dim == 2 else "--"
+            ax.loglog([r["dofs"] for r in rs], [r["us_per_dof"] for r in rs], marker + style, label="%dD %s, set-up + solve" % (dim, element.upper()))
+            ax.loglog([r["dofs"] for r in rs], [1e6 * r["solve_s"] / r["dofs"] for r in rs], marker + ":", alpha=0.6, label="%dD %s, solve only" % (dim, element.upper()))
+    ax.set_xlabel("DOFs")
+    ax.set_ylabel("time per DOF [us]")
+    ax.set_title("signorini: time per DOF (%d rank%s)" % (rows[0]["ranks"], "s" if rows[0]["ranks"] > 1 else ""))
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path + ".tmp.png", dpi=120)
+    plt.close(fig)
+    os.replace(path + ".tmp.png", path)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--dims", default="2,3")
+    ap.add_argument("--elements", default="p1,cr")
+    ap.add_argument("--n2", default="256,512,1024,2048", help="2D cells per side")
+    ap.add_argument("--n3", default="12,24,48,96", help="3D cells per side")
+    ap.add_argument("--ranks", type=int, default=1)
+    ap.add_argument("--presets", action="store_true", help="also run each petsc-options/solvers preset on a mid-size mesh")
+    ap.add_argument("--quick", action="store_true", help="small sizes only")
+    ap.add_argument("--out", default=os.path.join(ROOT, "results", "bench"))
+    args, extra = ap.parse_known_args()
+    if args.quick:
+        args.n2, args.n3 = "64,128", "12,24"
+    os.makedirs(args.out, exist_ok=True)
+    dims = [int(d) for d in args.dims.split(",")]
+    elements = args.elements.split(",")
+    sizes = {2: [int(n) for n in args.n2.split(",")], 3: [int(n) for n in args.n3.split(",")]}
+    rows = []
+    print(header(), flush=True)
+    for dim in dims:
+        for element in elements:
+            for N in sizes[dim]:
+                rows.append(run_case(dim, element, N, args.ranks, args.out, extra))
+                print(line(rows[-1]), flush=True)
+    if args.presets:
+        presets = sorted(glob.glob(os.path.join(ROOT, "petsc-options", "solvers", "*")))
+        for dim in dims:
+            N = sizes[dim][len(sizes[dim]) // 2 - 1] if len(sizes[dim]) > 1 else sizes[dim][0]
+            for element in elements:
+                for preset in presets:
+                    rows.append(run_case(dim, element, N, args.ranks, args.out, extra, preset))
+                    print(line(rows[-1]), flush=True)
+    print("\nsummary (%d rank%s; times in seconds from the -log_view stages):" % (args.ranks, "s" if args.ranks > 1 else ""))
+    print_table(rows)
+    print_targets(rows)
+    write_csv(rows, os.path.join(args.out, "bench.csv"))
+    plot(rows, os.path.join(args.out, "time-per-dof.png"))
+    print("\nwrote %s and %s" % (os.path.join(args.out, "bench.csv"), os.path.join(args.out, "time-per-dof.png")))
+    return 1 if any(r["status"] != "ok" for r in rows) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

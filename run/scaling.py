@@ -1,0 +1,195 @@
+"""Strong and weak scaling studies with mpirun: efficiency tables and plots, each run's -log_view kept.
+
+  run/scaling [--ranks 1,2,4,...] [--max-ranks P] [--dim 2|3] [--element cr|p1] [--strong-n N] [--weak-n N]
+              [--kind strong,weak] [--mpiexec "mpirun"] [--mpiexec-args "..."] [--out DIR] [signorini options...]
+
+Strong scaling: one fixed mesh (the paper's scene, N x N cells in 2D or N^3 cubes in 3D) on 1, 2, 4, ... P
+ranks. Weak scaling: a fixed number of DOFs per rank: with p ranks the domain is p unit squares (cubes) side
+by side in x, each with N x N cells, so the mesh, the data (f is 1-periodic in x) and the cells per rank do
+not change. P defaults to the cores of this machine; on a cluster, run the script inside a batch job and
+give --max-ranks (or --ranks) and --mpiexec (e.g. "srun", or "mpirun --bind-to core"); the script only builds
+command lines. Efficiency: strong T(1) / (p T(p)), weak T(1) / T(p), from the solve stage and from the
+whole run (set-up + solve)."""
+import argparse
+import csv
+import json
+import os
+import shlex
+import subprocess
+import sys
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+EXE = os.path.join(ROOT, "build", "signorini")
+sys.path.insert(0, HERE)
+from bench import SETUP, mesh_args  # noqa: E402
+
+ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+
+
+def launch(args, ranks, options, tag):
+    """Runs signorini on `ranks` ranks; returns its summary dict (None on failure)."""
+    summary, log = os.path.join(args.out, tag + ".json"), os.path.join(args.out, tag + ".log")
+    cmd = shlex.split(args.mpiexec) + ["-n", str(ranks)] + shlex.split(args.mpiexec_args)
+    if ranks > (os.cpu_count() or 1) and os.path.basename(shlex.split(args.mpiexec)[0]) in ("mpirun", "mpiexec"):
+        cmd.append("--oversubscribe")  # Open MPI refuses more ranks than cores otherwise
+    cmd += [EXE] + options + ["-summary", summary, "-log_view", ":" + log]
+    p = subprocess.run(cmd, capture_output=True, text=True, env=ENV)
+    if p.returncode != 0 or not os.path.exists(summary):
+        sys.stderr.write(" ".join(cmd) + "\n" + p.stdout + p.stderr)
+        return None
+    with open(summary) as f:
+        return json.load(f)
+
+
+def scene_options(dim, element):
+    scene = "paper-5.1" if dim == 2 else "paper-5.1-3d"
+    return ["-options_file", os.path.join(ROOT, "petsc-options", scene), "-space", element]
+
+
+def times(s):
+    t = s["time"]
+    return t["solve"], sum(t.get(k, 0.0) for k in SETUP) + t["solve"]
+
+
+def strong(args, extra):
+    rows = []
+    for p in args.ranks:
+        opts = scene_options(args.dim, args.element) + mesh_args(args.dim, args.strong_n) + extra
+        s = launch(args, p, opts, "strong-%dd-%s-N%d-np%d" % (args.dim, args.element, args.strong_n, p))
+        rows.append(row("strong", p, s))
+    base = next((r for r in rows if r["status"] == "ok"), None)
+    for r in rows:
+        if base and r["status"] == "ok":
+            r["eff_solve"] = base["solve_s"] * base["ranks"] / (r["solve_s"] * r["ranks"])
+            r["eff_total"] = base["total_s"] * base["ranks"] / (r["total_s"] * r["ranks"])
+    return rows
+
+
+def weak(args, extra):
+    rows = []
+    for p in args.ranks:
+        mesh = mesh_args(args.dim, args.weak_n)
+        base = int(mesh[1])
+        faces = [str(base * p)] + [str(base)] * (args.dim - 1)
+        upper = [str(p)] + ["1"] * (args.dim - 1)
+        opts = scene_options(args.dim, args.element) + ["-box_faces", ",".join(faces), "-refine", mesh[3], "-box_upper", ",".join(upper)] + extra
+        s = launch(args, p, opts, "weak-%dd-%s-N%d-np%d" % (args.dim, args.element, args.weak_n, p))
+        rows.append(row("weak", p, s))
+    base = next((r for r in rows if r["status"] == "ok"), None)
+    for r in rows:
+        if base and r["status"] == "ok":
+            r["eff_solve"] = base["solve_s"] / r["solve_s"]
+            r["eff_total"] = base["total_s"] / r["total_s"]
+    return rows
+
+
+def row(kind, ranks, s):
+    if s is None:
+        return {"kind": kind, "ranks": ranks, "status": "failed"}
+    solve, total = times(s)
+    per_rank = s.get("cells_per_rank", [])
+    imbalance = max(per_rank) / (sum(per_rank) / len(per_rank)) if per_rank else 1.0
+    return {"kind": kind, "ranks": ranks, "status": "ok", "dofs": s["dofs"], "newton": s["solver"]["newton_iterations"],
+            "ksp": s["solver"].get("ksp_iterations_total", s["solver"]["ksp_iterations"]), "solve_s": solve, "total_s": total,
+            "edge_cut": s.get("edge_cut", -1), "imbalance": imbalance, "energy": s["energy"]}
+
+
+def print_rows(title, rows):
+    print("\n%s" % title)
+    print("%6s %11s %11s %6s %6s %9s %9s %8s %8s %9s %9s" % ("ranks", "DOFs", "DOFs/rank", "Newton", "KSP", "solve[s]", "total[s]", "eff(sol)", "eff(tot)", "edge cut", "imbalance"))
+    for r in rows:
+        if r["status"] != "ok":
+            print("%6d  failed" % r["ranks"])
+            continue
+        print("%6d %11d %11d %6d %6d %9.3f %9.3f %7.0f%% %7.0f%% %9d %9.3f" % (r["ranks"], r["dofs"], r["dofs"] // r["ranks"], r["newton"], r["ksp"], r["solve_s"], r["total_s"],
+                                                                            100 * r.get("eff_solve", 0), 100 * r.get("eff_total", 0), r["edge_cut"], r["imbalance"]))
+
+
+def write_csv(rows, path):
+    keys = ["kind", "ranks", "dofs", "newton", "ksp", "solve_s", "total_s", "eff_solve", "eff_total", "edge_cut", "imbalance", "energy", "status"]
+    with open(path + ".tmp", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=keys, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(rows)
+    os.replace(path + ".tmp", path)
+
+
+def plot(results, path, title):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    for kind, rows in results.items():
+        ok = [r for r in rows if r["status"] == "ok"]
+        if not ok:
+            continue
+        ps = [r["ranks"] for r in ok]
+        axes[0].plot(ps, [r["solve_s"] for r in ok], "o-", label="%s: solve" % kind)
+        axes[0].plot(ps, [r["total_s"] for r in ok], "s--", label="%s: set-up + solve" % kind)
+        axes[1].plot(ps, [100 * r["eff_solve"] for r in ok], "o-", label="%s: solve" % kind)
+        axes[1].plot(ps, [100 * r["eff_total"] for r in ok], "s--", label="%s: set-up + solve" % kind)
+    if "strong" in results and any(r["status"] == "ok" for r in results["strong"]):
+        ok = [r for r in results["strong"] if r["status"] == "ok"]
+        axes[0].plot([r["ranks"] for r in ok], [ok[0]["solve_s"] * ok[0]["ranks"] / r["ranks"] for r in ok], "k:", label="ideal strong (solve)")
+    axes[0].set_xscale("log", base=2)
+    axes[0].set_yscale("log")
+    axes[0].set_xlabel("ranks")
+    axes[0].set_ylabel("time [s]")
+    axes[1].set_xscale("log", base=2)
+    axes[1].set_xlabel("ranks")
+    axes[1].set_ylabel("parallel efficiency [%]")
+    axes[1].axhline(100, color="k", lw=0.5)
+    for ax in axes:
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path + ".tmp.png", dpi=120)
+    plt.close(fig)
+    os.replace(path + ".tmp.png", path)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--ranks", help="comma-separated rank counts (default 1, 2, 4, ... up to --max-ranks)")
+    ap.add_argument("--max-ranks", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--dim", type=int, default=2, choices=(2, 3))
+    ap.add_argument("--element", default="cr", choices=("cr", "p1"))
+    ap.add_argument("--strong-n", type=int, help="cells per side of the strong-scaling mesh (default 2048 in 2D, 96 in 3D)")
+    ap.add_argument("--weak-n", type=int, help="cells per side of each rank's unit square/cube (default 512 in 2D, 48 in 3D)")
+    ap.add_argument("--kind", default="strong,weak")
+    ap.add_argument("--mpiexec", default=os.environ.get("MPIEXEC", "mpirun"))
+    ap.add_argument("--mpiexec-args", default="")
+    ap.add_argument("--out", default=os.path.join(ROOT, "results", "scaling"))
+    args, extra = ap.parse_known_args()
+    if args.ranks:
+        args.ranks = [int(p) for p in args.ranks.split(",")]
+    else:
+        args.ranks = [1]
+        while args.ranks[-1] * 2 <= args.max_ranks:
+            args.ranks.append(args.ranks[-1] * 2)
+        if args.ranks[-1] != args.max_ranks:
+            args.ranks.append(args.max_ranks)
+    args.strong_n = args.strong_n or (2048 if args.dim == 2 else 96)
+    args.weak_n = args.weak_n or (512 if args.dim == 2 else 48)
+    os.makedirs(args.out, exist_ok=True)
+    results = {}
+    title = "%dD %s, paper-5.1 scene" % (args.dim, args.element.upper())
+    if "strong" in args.kind:
+        results["strong"] = strong(args, extra)
+        print_rows("strong scaling, %s, N = %d:" % (title, args.strong_n), results["strong"])
+    if "weak" in args.kind:
+        results["weak"] = weak(args, extra)
+        print_rows("weak scaling, %s, N = %d per rank (domain [0, p] x [0, 1]):" % (title, args.weak_n), results["weak"])
+    rows = [r for rs in results.values() for r in rs]
+    write_csv(rows, os.path.join(args.out, "scaling.csv"))
+    plot(results, os.path.join(args.out, "scaling.png"), title)
+    print("\nwrote %s, %s and each run's -log_view (*.log) in %s" % (os.path.join(args.out, "scaling.csv"), os.path.join(args.out, "scaling.png"), args.out))
+    return 1 if any(r["status"] != "ok" for r in rows) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
