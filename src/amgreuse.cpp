@@ -1,6 +1,7 @@
 #include "signorini/amgreuse.h"
 #include "signorini/common.h"
 
+#include <string>
 #include <vector>
 
 namespace signorini {
@@ -12,6 +13,11 @@ PetscErrorCode AmgReuseOptionsFromCommandLine(MPI_Comm comm, AmgReuseOptions &o)
   PetscOptionsBegin(comm, "", "Linear solves of the Newton steps of the contact solve", "signorini");
   PetscCall(PetscOptionsBool("-amg_reuse", "Keep the BoomerAMG set-up across Newton steps while the inactive set changes little (off: a new set-up every step)", "", enabled, &enabled, NULL));
   PetscCall(PetscOptionsReal("-vi_inexact_rtol", "Relative tolerance of the linear solves of Newton steps whose active set still moves (0: every step to the KSP tolerance)", "", o.inexactRtol, &o.inexactRtol, NULL));
+  char type[64];
+  PetscBool set;
+  PetscCall(PetscStrncpy(type, o.innerType.c_str(), sizeof(type)));
+  PetscCall(PetscOptionsString("-vi_pc_type", "Preconditioner built for the inactive-set blocks of the contact solve (hypre, gamg, ...; -pc_type replaces the whole re-using shell)", "", type, type, sizeof(type), &set));
+  o.innerType = type;
   PetscCall(PetscOptionsInt("-amg_reuse_max_changed", "Set BoomerAMG up anew once more than this many DOFs left or joined the inactive set since its last set-up", "", o.maxChanged, &o.maxChanged, NULL));
   PetscOptionsEnd();
   o.enabled = enabled;
@@ -23,6 +29,7 @@ PetscErrorCode AmgReuseOptionsFromCommandLine(MPI_Comm comm, AmgReuseOptions &o)
 namespace {
 struct Reuse {
   SNES            snes = nullptr;
+  std::string     innerType = PCHYPRE;    // the preconditioner built for a block
   AmgReuseOptions opts;
   AmgReuseStats  *stats = nullptr;
   PC              amg   = nullptr;        // BoomerAMG of the reference block
@@ -75,8 +82,8 @@ PetscErrorCode BuildAmg(PC pc, Reuse &r, Mat P, const PetscInt *cur, PetscInt n)
   PetscCall(PCCreate(PetscObjectComm((PetscObject)pc), &r.amg));
   PetscCall(PCGetOptionsPrefix(pc, &prefix));
   PetscCall(PCSetOptionsPrefix(r.amg, prefix));
-  PetscCall(PCSetType(r.amg, PCHYPRE));
-  PetscCall(PCHYPRESetType(r.amg, "boomeramg"));
+  PetscCall(PCSetType(r.amg, r.innerType.c_str()));
+  if (r.innerType == PCHYPRE) PetscCall(PCHYPRESetType(r.amg, "boomeramg"));
   PetscCall(PCSetFromOptions(r.amg));
   PetscCall(PCSetOperators(r.amg, P, P));
   PetscCall(PCSetUp(r.amg));
@@ -212,10 +219,11 @@ PetscErrorCode AmgReuseInstall(SNES snes, const AmgReuseOptions &o, AmgReuseStat
   KSP ksp;
   PC  pc;
   PetscFunctionBeginUser;
-  auto *r  = new Reuse;
-  r->snes  = snes;
-  r->opts  = o;
-  r->stats = stats;
+  auto *r      = new Reuse;
+  r->snes      = snes;
+  r->opts      = o;
+  r->stats     = stats;
+  r->innerType = o.innerType;
   PetscCall(SNESGetKSP(snes, &ksp));
   PetscCall(KSPGetPC(ksp, &pc));
   PetscCall(PCSetType(pc, PCSHELL));

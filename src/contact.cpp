@@ -25,8 +25,17 @@ PetscErrorCode Residual(SNES, Vec u, Vec F, void *ctx)
   PetscFunctionReturn(0);
 }
 
-// A is assembled once; SNESVI extracts the inactive-set block from it in every Newton step.
-PetscErrorCode ConstantJacobian(SNES, Vec, Mat, Mat, void *) { return 0; }
+// A is assembled once. The reduced-space solver (RSLS) only extracts the inactive-set block from it, so
+// J = A and nothing is done here. The semismooth solver (SSLS) overwrites J with its own Jacobian
+// D_a + D_b A, so for it J is a copy of A refreshed before every step (F = A u - b must keep the original A).
+PetscErrorCode ConstantJacobian(SNES, Vec, Mat J, Mat, void *ctx)
+{
+  auto *c = static_cast<ResidualContext *>(ctx);
+  PetscFunctionBeginUser;
+  if (J != c->A) PetscCall(MatCopy(c->A, J, SAME_NONZERO_PATTERN));
+  PetscFunctionReturn(0);
+}
+
 } // namespace
 
 PetscErrorCode ContactLowerBound(const Space &space, const Problem &problem, Vec lower)
@@ -178,6 +187,43 @@ static PetscErrorCode StraightStartNorm(SNES snes, const System &sys, Vec lower,
   PetscFunctionReturn(0);
 }
 
+// What the options chose, made to work where it can be. Another SNESVI type (-snes_type vinewtonssls) needs its own Jacobian matrix (see ConstantJacobian), and
+// it solves the full system, where the AMG re-use shell, which works on the reduced-space solver's
+// inactive sets, does not apply: plain BoomerAMG takes its place.
+static PetscErrorCode AdaptToSNESType(SNES snes, const System &sys, Mat *J)
+{
+  PetscBool rsls, shell;
+  KSP       ksp;
+  PC        pc;
+  void     *ctx;
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompare((PetscObject)snes, SNESVINEWTONRSLS, &rsls));
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(KSPGetPC(ksp, &pc));
+  PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCSHELL, &shell));
+  if (rsls) {
+    // PETSc 3.18's RSLS hands a GAMG (or MG) preconditioner a block of another size when the active set
+    // changes, which GAMG refuses with an error deep inside; the shell builds a fresh one per block.
+    PetscBool mg;
+    PetscCall(PetscObjectTypeCompareAny((PetscObject)pc, &mg, PCGAMG, PCMG, PCML, ""));
+    if (mg) {
+      PCType type;
+      PetscCall(PCGetType(pc, &type));
+      SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)snes), "option -pc_type %s: the reduced-space contact solve cannot keep a multigrid preconditioner across active sets of different size (PETSc 3.18); use -vi_pc_type %s, which builds one for each active set", type, type);
+    }
+    PetscFunctionReturn(0);
+  }
+  PetscCall(SNESGetJacobian(snes, NULL, NULL, NULL, &ctx));
+  PetscCall(MatDuplicate(sys.A, MAT_COPY_VALUES, J));
+  PetscCall(SNESSetJacobian(snes, *J, *J, ConstantJacobian, ctx));
+  if (shell) {
+    PetscCall(PCSetType(pc, PCHYPRE));
+    PetscCall(PCHYPRESetType(pc, "boomeramg"));
+    PetscCall(PCSetFromOptions(pc));
+  }
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &r, const SolveOptions &opts)
 {
   SNES                snes;
@@ -185,6 +231,7 @@ static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &
   Vec                 upper, F;
   SNESConvergedReason reason;
   ResidualContext     ctx{sys.A, sys.b};
+  Mat                 J = nullptr;
   PetscFunctionBeginUser;
   PetscCall(VecDuplicate(u, &upper));
   PetscCall(VecDuplicate(u, &F));
@@ -192,13 +239,14 @@ static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &
   PetscCall(SNESCreate(PetscObjectComm((PetscObject)u), &snes));
   PetscCall(SNESSetType(snes, SNESVINEWTONRSLS));
   PetscCall(SNESSetFunction(snes, F, Residual, &ctx));
-  PetscCall(SNESSetJacobian(snes, sys.A, sys.A, ConstantJacobian, NULL));
+  PetscCall(SNESSetJacobian(snes, sys.A, sys.A, ConstantJacobian, &ctx));
   PetscCall(SNESVISetVariableBounds(snes, lower, upper));
   PetscCall(SNESSetTolerances(snes, PETSC_DEFAULT, 1e-9, 1e-14, 200, PETSC_DEFAULT));
   PetscCall(SNESGetKSP(snes, &ksp));
   PetscCall(ConfigureKSP(ksp));
   PetscCall(AmgReuseInstall(snes, opts.amgReuse, &r.amg));
   PetscCall(SNESSetFromOptions(snes));
+  PetscCall(AdaptToSNESType(snes, sys, &J));
   PetscReal atol, rtol, stol;
   PetscInt  maxit, maxf;
   PetscCall(SNESGetTolerances(snes, &atol, &rtol, &stol, &maxit, &maxf));
@@ -228,6 +276,7 @@ static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &
   PetscCall(SNESGetLinearSolveIterations(snes, &r.kspIts));
   r.reason = SNESConvergedReasons[reason];
   PetscCall(SNESDestroy(&snes));
+  PetscCall(MatDestroy(&J));
   PetscCall(VecDestroy(&upper));
   PetscCall(VecDestroy(&F));
   if (reason <= 0) SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)u), "solver: the contact solve (SNESVI) did not converge (%s after %" PetscInt_FMT " Newton iterations); see -snes_monitor -snes_vi_monitor -ksp_converged_reason", r.reason.c_str(), r.newtonIts);

@@ -83,7 +83,7 @@ PetscErrorCode ReportPrint(MPI_Comm comm, const Report &r)
   o << Format("scene %s: element %s, %dD, mesh %s, refine %d: %d cells, %d DOFs (%d Dirichlet, %d contact), %d rank(s)\n", r.scene.c_str(), r.element.c_str(), (int)r.dim, r.mesh.c_str(), (int)r.refine, (int)r.cells, (int)r.dofs, (int)r.dirichletDofs, (int)r.contactDofs, (int)r.ranks);
   if (r.solve.vi) {
     o << Format("  solve: SNESVI %s, %d Newton / %d KSP iterations\n", r.solve.reason.c_str(), (int)r.solve.newtonIts, (int)r.solve.kspIts);
-    if (r.solve.amg.setups + r.solve.amg.reuses > 0) o << Format("  BoomerAMG set up %d times, re-used in %d Newton steps\n", (int)r.solve.amg.setups, (int)r.solve.amg.reuses);
+    if (r.solve.amg.setups + r.solve.amg.reuses > 0) o << Format("  preconditioner of the inactive-set blocks set up %d times, re-used in %d Newton steps\n", (int)r.solve.amg.setups, (int)r.solve.amg.reuses);
     for (size_t l = 0; l < r.solve.levels.size(); ++l) {
       const SolveResult::Level &v = r.solve.levels[l];
       o << Format("  nested level %d: %d DOFs, %d Newton / %d KSP iterations, set-up %.3f s, solve %.3f s\n", (int)l, (int)v.dofs, (int)v.newtonIts, (int)v.kspIts, v.setupSeconds, v.solveSeconds);

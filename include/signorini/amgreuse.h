@@ -23,11 +23,15 @@
 //    after its set-up is replaced in any case.
 // The discrete solution does not depend on any of this: the SNES stops at the same residual.
 //
-// The BoomerAMG inside reads the usual -pc_hypre_* options. An explicit -pc_type replaces the shell and
+// The preconditioner inside is BoomerAMG by default and reads the usual -pc_hypre_* options; -vi_pc_type
+// chooses another (gamg, reading -pc_gamg_*: PETSc 3.18's RSLS cannot keep a GAMG across blocks of
+// different size, this shell creates one per set-up). An explicit -pc_type replaces the shell and
 // restores PETSc's behaviour (a new preconditioner for every block, every step to the KSP tolerance).
 #pragma once
 
 #include <petscsnes.h>
+
+#include <string>
 
 namespace signorini {
 
@@ -35,6 +39,7 @@ struct AmgReuseOptions {
   bool      enabled     = true; // -amg_reuse (off: a new set-up every step)
   PetscInt  maxChanged  = 2;    // -amg_reuse_max_changed: "changed" means more DOFs than this (global count)
   PetscReal inexactRtol = 1e-1; // -vi_inexact_rtol (0: every step to the KSP tolerances)
+  std::string innerType = "hypre"; // -vi_pc_type: the preconditioner built for a block
 };
 PetscErrorCode AmgReuseOptionsFromCommandLine(MPI_Comm comm, AmgReuseOptions &o);
 
