@@ -119,7 +119,7 @@ PetscErrorCode ReuseSetUp(PC pc)
   PetscCall(ISGetIndices(inactive, &cur));
   std::vector<PetscInt> unused;
   PetscInt changed = r->amg ? MatchSets(cur, n, r->ref, r->map) : N;
-  PetscInt moved   = r->havePrev ? MatchSets(cur, n, r->prev, unused) : N;
+  PetscInt moved   = r->havePrev ? MatchSets(cur, n, r->prev, unused) : (r->opts.goodStart ? 0 : N);
   PetscInt local[3] = {changed, moved, sorted ? 0 : 1}, global[3];
   PetscCallMPI(MPI_Allreduce(local, global, 3, MPIU_INT, MPI_SUM, comm));
   r->prev.assign(cur, cur + n);

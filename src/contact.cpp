@@ -244,7 +244,9 @@ static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &
   PetscCall(SNESSetTolerances(snes, PETSC_DEFAULT, 1e-9, 1e-14, 200, PETSC_DEFAULT));
   PetscCall(SNESGetKSP(snes, &ksp));
   PetscCall(ConfigureKSP(ksp));
-  PetscCall(AmgReuseInstall(snes, opts.amgReuse, &r.amg));
+  AmgReuseOptions reuse = opts.amgReuse;
+  reuse.goodStart       = opts.initialGuess;
+  PetscCall(AmgReuseInstall(snes, reuse, &r.amg));
   PetscCall(SNESSetFromOptions(snes));
   PetscCall(AdaptToSNESType(snes, sys, &J));
   PetscReal atol, rtol, stol;

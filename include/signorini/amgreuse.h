@@ -40,6 +40,8 @@ struct AmgReuseOptions {
   PetscInt  maxChanged  = 2;    // -amg_reuse_max_changed: "changed" means more DOFs than this (global count)
   PetscReal inexactRtol = 1e-1; // -vi_inexact_rtol (0: every step to the KSP tolerances)
   std::string innerType = "hypre"; // -vi_pc_type: the preconditioner built for a block
+  bool      goodStart   = false; // the initial guess carries its active set (nested iteration): the first
+                                 // step is solved to the KSP tolerance, as if the set had settled
 };
 PetscErrorCode AmgReuseOptionsFromCommandLine(MPI_Comm comm, AmgReuseOptions &o);
 
