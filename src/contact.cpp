@@ -148,6 +148,7 @@ PetscErrorCode SolveOptionsFromCommandLine(MPI_Comm comm, SolveOptions &o)
   PetscBool compare = o.compareLinear ? PETSC_TRUE : PETSC_FALSE;
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Solve", "signorini");
+  PetscCall(PetscOptionsReal("-kkt_tolerance", "Warn when the relative KKT residual on Gamma_C after the contact solve exceeds this (the solve stopped before the active set settled)", "", o.kktTolerance, &o.kktTolerance, NULL));
   PetscCall(PetscOptionsBool("-compare_linear", "After the solve, time one linear solve of the same operator and right-hand side (same KSP/PC options) for comparison", "", compare, &compare, NULL));
   PetscOptionsEnd();
   o.compareLinear = compare;
@@ -343,6 +344,9 @@ static PetscErrorCode MeasureKKT(const Space &space, const System &sys, Vec u, V
   PetscInt        active = 0;
   for (PetscReal g : gaps) active += g <= tol;
   PetscCallMPI(MPI_Allreduce(&active, &r.active, 1, MPIU_INT, MPI_SUM, comm));
+  const PetscReal scaleU = std::max({maxs[3], r.gapMax, PETSC_SMALL * PETSC_SMALL});
+  r.kktRelative          = std::max((PetscReal)0, -r.primal) / scaleU;
+  if (r.active > 0 && r.pressureMax > 0) r.kktRelative = std::max({r.kktRelative, -r.dual / r.pressureMax, r.complementarity / (r.pressureMax * std::max(r.gapMax, scaleU))});
   PetscFunctionReturn(0);
 }
 

@@ -116,6 +116,10 @@ static PetscErrorCode Run(MPI_Comm comm)
     report.solve.levels.back().setupSeconds = setup; // the finest level's space and assembly
   } else PetscCall(Solve(space, s.problem, sys, u, report.solve, s.solve));
   PetscCall(MeshLevelsDestroy(levels));
+  // SNES judges convergence by a residual norm that the stiffest rows dominate; the KKT conditions judge
+  // the answer itself, so a solve that stopped early does not pass unseen.
+  if (report.solve.vi && report.solve.kktRelative > s.solve.kktTolerance)
+    PetscCall(PetscPrintf(comm, "signorini: warning: the discrete KKT conditions on Gamma_C hold only to %.1e relative (-kkt_tolerance %g): the solve stopped before the active set settled; for stiff problems (kappa jumps, stretched cells) add -options_file petsc-options/solvers/high-contrast\n", (double)report.solve.kktRelative, (double)s.solve.kktTolerance));
   if (s.problem.HasExact()) PetscCall(ErrorAgainstExact(space, s.problem, u, s.errorDegree, report.error));
 
   report.scene         = s.problem.scene;

@@ -88,7 +88,7 @@ PetscErrorCode ReportPrint(MPI_Comm comm, const Report &r)
       const SolveResult::Level &v = r.solve.levels[l];
       o << Format("  nested level %d: %d DOFs, %d Newton / %d KSP iterations, set-up %.3f s, solve %.3f s\n", (int)l, (int)v.dofs, (int)v.newtonIts, (int)v.kspIts, v.setupSeconds, v.solveSeconds);
     }
-    o << Format("  KKT on Gamma_C: min(u-psi) %.3e, min pressure %.3e, max |(u-psi) pressure| %.3e, active %d of %d\n", (double)r.solve.primal, (double)r.solve.dual, (double)r.solve.complementarity, (int)r.solve.active, (int)r.contactDofs);
+    o << Format("  KKT on Gamma_C: min(u-psi) %.3e, min pressure %.3e, max |(u-psi) pressure| %.3e (worst relative %.1e), active %d of %d\n", (double)r.solve.primal, (double)r.solve.dual, (double)r.solve.complementarity, (double)r.solve.kktRelative, (int)r.solve.active, (int)r.contactDofs);
   } else {
     o << Format("  solve: KSP %s, %d iterations (no contact part: linear solve)\n", r.solve.reason.c_str(), (int)r.solve.kspIts);
   }
@@ -169,7 +169,7 @@ PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string
   if (r.solve.linearSeconds >= 0) o << ", \"linear_solve_seconds\": " << Num(r.solve.linearSeconds) << ", \"linear_ksp_iterations\": " << r.solve.linearKspIts << ", \"solve_linear_ratio\": " << Num(r.solve.solveSeconds / r.solve.linearSeconds);
   o << "},\n";
   if (r.solve.vi)
-    o << "  \"kkt\": {\"min_gap\": " << Num(r.solve.primal) << ", \"min_pressure\": " << Num(r.solve.dual) << ", \"max_complementarity\": " << Num(r.solve.complementarity) << ", \"max_pressure\": " << Num(r.solve.pressureMax) << ", \"max_gap\": " << Num(r.solve.gapMax) << ", \"active\": " << r.solve.active << "},\n";
+    o << "  \"kkt\": {\"min_gap\": " << Num(r.solve.primal) << ", \"min_pressure\": " << Num(r.solve.dual) << ", \"max_complementarity\": " << Num(r.solve.complementarity) << ", \"max_pressure\": " << Num(r.solve.pressureMax) << ", \"max_gap\": " << Num(r.solve.gapMax) << ", \"relative\": " << Num(r.solve.kktRelative) << ", \"active\": " << r.solve.active << "},\n";
   o << "  \"stationarity\": " << Num(r.solve.stationarity) << ",\n  \"energy\": " << Num(r.solve.energy) << ",\n";
   if (r.hasExact) o << "  \"error\": {\"l2\": " << Num(r.error.l2) << ", \"h1_semi\": " << Num(r.error.h1semi) << ", \"h1\": " << Num(r.error.h1) << "},\n";
   o << "  \"time\": {";

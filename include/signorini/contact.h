@@ -23,6 +23,11 @@ struct SolveResult {
   PetscReal complementarity = 0; // max |(u - psi) * r/m|: 0
   PetscReal pressureMax = 0, gapMax = 0;
   PetscInt  active = 0; // contact DOFs with u = psi
+  // The worst of the three KKT residuals, each relative to its natural scale: max(0, -min gap) / max|u|,
+  // -min pressure / max pressure, complementarity / (max pressure * max(max gap, max|u|)); the last two
+  // only where some contact DOF is active. Round-off level when the solve converged; a solve that stopped
+  // early (stiff rows dominating the SNES residual norm) shows here even when SNES reported convergence.
+  PetscReal kktRelative = 0;
   PetscReal stationarity = 0; // max |r| over DOFs that are neither Dirichlet nor contact, relative to max |load|
   PetscReal energy = 0;
   // Nested iteration: one entry per level solved, coarsest first, the finest (this solve) last; empty
@@ -41,6 +46,7 @@ struct SolveResult {
 struct SolveOptions {
   bool      initialGuess  = false; // u holds an initial guess (e.g. prolongated from a coarser level)
   bool      compareLinear = false; // -compare_linear: also time one linear solve of A u = b
+  PetscReal kktTolerance  = 1e-6;  // -kkt_tolerance: a larger relative KKT residual is reported as a warning
   PetscReal snesRtol      = -1;    // SNES rtol override for this solve (< 0: defaults and options decide)
   AmgReuseOptions amgReuse;
 };
