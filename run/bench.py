@@ -158,6 +158,13 @@ def plot(rows, path):
     ax.set_title("signorini: time per DOF (%d rank%s)" % (rows[0]["ranks"], "s" if rows[0]["ranks"] > 1 else ""))
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
+    save_png(fig, path)
+
+
+def save_png(fig, path):
+    """Writes a matplotlib figure to path through a temporary name, so no half-written plot is left."""
+    import matplotlib.pyplot as plt
+
     fig.tight_layout()
     fig.savefig(path + ".tmp.png", dpi=120)
     plt.close(fig)

@@ -20,6 +20,16 @@ std::string Format(const char *fmt, ...)
   return buf;
 }
 
+PetscErrorCode SecondsSince(MPI_Comm comm, PetscLogDouble t0, double *seconds)
+{
+  PetscLogDouble t1;
+  PetscFunctionBeginUser;
+  PetscCall(PetscTime(&t1));
+  *seconds = t1 - t0;
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, seconds, 1, MPI_DOUBLE, MPI_MAX, comm));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode CheckAll(MPI_Comm comm, bool ok, const std::string &message)
 {
   PetscMPIInt rank, failing;

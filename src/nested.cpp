@@ -164,18 +164,12 @@ struct Level {
   }
 };
 
-double MaxOverRanks(MPI_Comm comm, double t)
-{
-  MPI_Allreduce(MPI_IN_PLACE, &t, 1, MPI_DOUBLE, MPI_MAX, comm);
-  return t;
-}
-
-// uh = prolongation of the coarse level's solution with its active set, made admissible on the fine level.
-// Part of the Solve stage; `seconds` is its wall time (max over ranks).
-PetscErrorCode ProlongateLevel(const Level &coarse, const Space &fine, const System &fineSys, const std::vector<PetscInt> &parent, const Problem &problem, Vec uh, double &seconds)
+// uh = prolongation of the coarse level's solution with its active set (Solve projects it onto the fine
+// level's constraints). Part of the Solve stage; `seconds` is its wall time (max over ranks).
+PetscErrorCode ProlongateLevel(const Level &coarse, const Space &fine, const std::vector<PetscInt> &parent, const Problem &problem, Vec uh, double &seconds)
 {
   Vec            lowerh;
-  PetscLogDouble t0, t1;
+  PetscLogDouble t0;
   PetscFunctionBeginUser;
   PetscCall(PetscTime(&t0));
   PetscCall(StagePush(Stage::Solve));
@@ -183,18 +177,16 @@ PetscErrorCode ProlongateLevel(const Level &coarse, const Space &fine, const Sys
   PetscCall(VecDuplicate(uh, &lowerh));
   PetscCall(ContactLowerBound(fine, problem, lowerh));
   PetscCall(TransferActiveSet(coarse.space, coarse.u, coarse.lower, fine, parent, lowerh, uh));
-  PetscCall(ProjectOntoConstraints(fineSys, fine.dirichletOwned, lowerh, uh));
   PetscCall(VecDestroy(&lowerh));
   PetscCall(StagePop(Stage::Solve));
-  PetscCall(PetscTime(&t1));
-  seconds = MaxOverRanks(PetscObjectComm((PetscObject)uh), t1 - t0);
+  PetscCall(SecondsSince(PetscObjectComm((PetscObject)uh), t0, &seconds));
   PetscFunctionReturn(0);
 }
 
 // Space, system, solution vector and lower bound of a coarse level (Setup and Assemble stages).
 PetscErrorCode SetUpLevel(DM dm, Element element, const Problem &problem, const AssemblyOptions &assembly, Level &level, double &seconds)
 {
-  PetscLogDouble t0, t1;
+  PetscLogDouble t0;
   PetscFunctionBeginUser;
   PetscCall(PetscTime(&t0));
   PetscCall(StagePush(Stage::Setup));
@@ -204,8 +196,7 @@ PetscErrorCode SetUpLevel(DM dm, Element element, const Problem &problem, const 
   PetscCall(DMCreateGlobalVector(level.space.dm, &level.u));
   PetscCall(VecDuplicate(level.u, &level.lower));
   PetscCall(ContactLowerBound(level.space, problem, level.lower));
-  PetscCall(PetscTime(&t1));
-  seconds = MaxOverRanks(PetscObjectComm((PetscObject)dm), t1 - t0);
+  PetscCall(SecondsSince(PetscObjectComm((PetscObject)dm), t0, &seconds));
   PetscFunctionReturn(0);
 }
 
@@ -239,7 +230,7 @@ PetscErrorCode NestedSolve(const MeshLevels &levels, const Problem &problem, con
     lo.initialGuess  = l > 0;
     PetscCall(SetUpLevel(levels.dm[l], fine.element, problem, assembly, cur, setupSeconds));
     if (l > 0) {
-      PetscCall(ProlongateLevel(prev, cur.space, cur.sys, levels.parent[l], problem, cur.u, prolongSeconds));
+      PetscCall(ProlongateLevel(prev, cur.space, levels.parent[l], problem, cur.u, prolongSeconds));
       PetscCall(prev.Destroy());
     }
     PetscCall(Solve(cur.space, problem, cur.sys, cur.u, lr, lo));
@@ -251,7 +242,7 @@ PetscErrorCode NestedSolve(const MeshLevels &levels, const Problem &problem, con
   SolveOptions fo = opts;
   double       prolongSeconds = 0;
   if (L > 1) {
-    PetscCall(ProlongateLevel(prev, fine, fineSys, levels.parent[L - 1], problem, u, prolongSeconds));
+    PetscCall(ProlongateLevel(prev, fine, levels.parent[L - 1], problem, u, prolongSeconds));
     PetscCall(prev.Destroy());
     fo.initialGuess = true;
   }

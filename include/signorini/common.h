@@ -28,6 +28,9 @@ PetscErrorCode CheckWritable(MPI_Comm comm, const std::string &option, const std
 // Parse a comma-separated list of integers ("1,3,4"); empty string gives an empty list.
 PetscErrorCode ParseIntList(MPI_Comm comm, const std::string &option, const std::string &text, std::vector<PetscInt> &values);
 
+// Collective: wall seconds since t0 (from PetscTime), the maximum over the ranks of comm.
+PetscErrorCode SecondsSince(MPI_Comm comm, PetscLogDouble t0, double *seconds);
+
 // printf-style formatting into a std::string.
 std::string Format(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 

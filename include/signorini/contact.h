@@ -47,7 +47,6 @@ struct SolveOptions {
   bool      initialGuess  = false; // u holds an initial guess (e.g. prolongated from a coarser level)
   bool      compareLinear = false; // -compare_linear: also time one linear solve of A u = b
   PetscReal kktTolerance  = 1e-6;  // -kkt_tolerance: a larger relative KKT residual is reported as a warning
-  PetscReal snesRtol      = -1;    // SNES rtol override for this solve (< 0: defaults and options decide)
   AmgReuseOptions amgReuse;
 };
 PetscErrorCode SolveOptionsFromCommandLine(MPI_Comm comm, SolveOptions &o);
