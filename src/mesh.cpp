@@ -164,6 +164,24 @@ PetscErrorCode ClosureVertices(DM dm, PetscInt p, PetscInt vStart, PetscInt vEnd
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode SimplexVertices(DM dm, PetscInt p, PetscInt depth, PetscInt verts[4])
+{
+  const PetscInt *cone;
+  PetscFunctionBeginUser;
+  PetscCall(DMPlexGetCone(dm, p, &cone));
+  if (depth == 1) {
+    verts[0] = cone[0];
+    verts[1] = cone[1];
+    PetscFunctionReturn(0);
+  }
+  PetscInt second[4];
+  PetscCall(SimplexVertices(dm, cone[0], depth - 1, verts));
+  PetscCall(SimplexVertices(dm, cone[1], depth - 1, second));
+  for (PetscInt i = 0; i < depth; ++i)
+    if (std::find(verts, verts + depth, second[i]) == verts + depth) verts[depth] = second[i];
+  PetscFunctionReturn(0);
+}
+
 // A mesh that folds over itself (an inverted cell: a vertex moved across an opposite face) has cells of
 // positive measure, so the measure check does not see it, yet the solution on it is wrong. In a valid mesh
 // the two cells of every interior face lie on opposite sides of it; the orientation in which the file

@@ -1,4 +1,5 @@
 #include "signorini/output.h"
+#include "signorini/mesh.h"
 #include "signorini/report.h"
 #include "signorini/stages.h"
 
@@ -52,7 +53,6 @@ static PetscErrorCode DerivedFields(const Space &space, Vec u, DM cellDM, DM ver
   Vec                uloc, vsum, vcnt, vsumG, vcntG, cloc;
   const PetscScalar *ua;
   PetscScalar       *cm, *vs, *vc;
-  PetscInt           vStart, vEnd;
   PetscFunctionBeginUser;
   PetscCall(DMGetLocalVector(space.dm, &uloc));
   PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, uloc));
@@ -65,7 +65,6 @@ static PetscErrorCode DerivedFields(const Space &space, Vec u, DM cellDM, DM ver
   PetscCall(VecGetArray(cloc, &cm));
   PetscCall(VecGetArray(vsum, &vs));
   PetscCall(VecGetArray(vcnt, &vc));
-  PetscCall(DMPlexGetDepthStratum(space.dm, 0, &vStart, &vEnd));
   PetscSection vsec, csec;
   PetscCall(DMGetLocalSection(vertDM, &vsec));
   PetscCall(DMGetLocalSection(cellDM, &csec));
@@ -74,22 +73,19 @@ static PetscErrorCode DerivedFields(const Space &space, Vec u, DM cellDM, DM ver
     PetscReal centroid[4], mean = 0;
     for (PetscInt k = 0; k < nb; ++k) centroid[k] = 1.0 / nb;
     for (PetscInt i = 0; i < nb; ++i) mean += PetscRealPart(ua[space.Dofs(c)[i]]) * space.BasisValue(c, i, centroid);
-    PetscInt *closure = nullptr, n, k = 0, coff;
+    PetscInt verts[4], coff;
     PetscCall(PetscSectionGetOffset(csec, space.cStart + c, &coff));
     cm[coff] = mean;
-    PetscCall(DMPlexGetTransitiveClosure(space.dm, space.cStart + c, PETSC_TRUE, &n, &closure));
-    for (PetscInt j = 0; j < n; ++j) {
-      const PetscInt p = closure[2 * j];
-      if (p < vStart || p >= vEnd) continue;
+    PetscCall(SimplexVertices(space.dm, space.cStart + c, space.dim, verts)); // the cell tables' vertex order
+    for (PetscInt k = 0; k < nb; ++k) {
       PetscReal lambda[4] = {0, 0, 0, 0}, val = 0;
-      lambda[k++]         = 1;
+      lambda[k]           = 1;
       for (PetscInt i = 0; i < nb; ++i) val += PetscRealPart(ua[space.Dofs(c)[i]]) * space.BasisValue(c, i, lambda);
       PetscInt off;
-      PetscCall(PetscSectionGetOffset(vsec, p, &off));
+      PetscCall(PetscSectionGetOffset(vsec, verts[k], &off));
       vs[off] += val;
       vc[off] += 1;
     }
-    PetscCall(DMPlexRestoreTransitiveClosure(space.dm, space.cStart + c, PETSC_TRUE, &n, &closure));
   }
   PetscCall(VecRestoreArrayRead(uloc, &ua));
   PetscCall(VecRestoreArray(cloc, &cm));

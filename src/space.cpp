@@ -119,17 +119,17 @@ static PetscErrorCode CreateSection(Space &s, PetscInt vStart, PetscInt vEnd, Pe
 }
 
 // Cell tables: vertex coordinates, DOFs, the vertex opposite each cone face, Cell Sets values.
-static PetscErrorCode BuildCellTables(Space &s, PetscInt vStart, PetscInt vEnd)
+static PetscErrorCode BuildCellTables(Space &s)
 {
   Vec                coords;
   DM                 cdm;
   PetscSection       csec, section;
   const PetscScalar *xa;
   DMLabel            cellSets;
-  std::vector<PetscInt> verts, fverts;
   std::string        problem;
   PetscFunctionBeginUser;
   const PetscInt nb = s.dim + 1, nc = s.NumCells();
+  PetscInt       verts[4], fverts[4];
   PetscCall(DMGetLocalSection(s.dm, &section));
   PetscCall(DMGetCoordinatesLocal(s.dm, &coords));
   PetscCall(DMGetCoordinateDM(s.dm, &cdm));
@@ -144,15 +144,15 @@ static PetscErrorCode BuildCellTables(Space &s, PetscInt vStart, PetscInt vEnd)
   for (PetscInt c = 0; c < nc; ++c) {
     const PetscInt  cell = s.cStart + c;
     const PetscInt *cone;
-    PetscCall(ClosureVertices(s.dm, cell, vStart, vEnd, verts));
+    PetscCall(SimplexVertices(s.dm, cell, s.dim, verts));
     PetscCall(DMPlexGetCone(s.dm, cell, &cone));
     for (PetscInt k = 0; k < nb; ++k) {
       PetscInt off;
       PetscCall(PetscSectionGetOffset(csec, verts[k], &off));
       for (PetscInt d = 0; d < s.dim; ++d) s.cellX[(c * nb + k) * s.dim + d] = PetscRealPart(xa[off + d]);
-      PetscCall(ClosureVertices(s.dm, cone[k], vStart, vEnd, fverts));
+      PetscCall(SimplexVertices(s.dm, cone[k], s.dim - 1, fverts));
       for (PetscInt j = 0; j < nb; ++j)
-        if (std::find(fverts.begin(), fverts.end(), verts[j]) == fverts.end()) s.cellOpp[c * nb + k] = j;
+        if (std::find(fverts, fverts + s.dim, verts[j]) == fverts + s.dim) s.cellOpp[c * nb + k] = j;
     }
     for (PetscInt i = 0; i < nb; ++i) {
       PetscInt off;
@@ -367,7 +367,7 @@ PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Spa
   PetscCall(DMPlexGetHeightStratum(s.dm, 1, &fStart, &fEnd));
   PetscCall(DMPlexGetHeightStratum(s.dm, 0, &s.cStart, &s.cEnd));
   PetscCall(CreateSection(s, vStart, vEnd, fStart, fEnd));
-  PetscCall(BuildCellTables(s, vStart, vEnd));
+  PetscCall(BuildCellTables(s));
   PetscCall(CollectBoundary(s, problem, fStart, fEnd));
   PetscCall(ClassifyDofs(s, problem));
   if (problem.HasContact() && !problem.dirichlet.empty()) PetscCall(CheckObstacleMeetsDirichlet(s, problem));
