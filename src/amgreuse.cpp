@@ -87,7 +87,6 @@ PetscErrorCode BuildAmg(PC pc, Reuse &r, Mat P, const PetscInt *cur, PetscInt n)
   PetscCall(PCSetFromOptions(r.amg));
   PetscCall(PCSetOperators(r.amg, P, P));
   PetscCall(PCSetUp(r.amg));
-  PetscCall(MatCreateVecs(P, &r.rRef, &r.zRef));
   r.ref.assign(cur, cur + n);
   r.map.resize(n);
   for (PetscInt k = 0; k < n; ++k) r.map[k] = k;
@@ -145,9 +144,16 @@ PetscErrorCode ReuseSetUp(PC pc)
     if (r->stats) r->stats->reuses++;
   }
   PetscCall(ISRestoreIndices(inactive, &cur));
+  // The work vectors of a changed set (in ReuseApply) only when the set has changed: the usual case,
+  // the set the AMG was built for, needs none, and at 10^7 DOFs each vector is memory worth saving.
   PetscCall(VecDestroy(&r->diag));
-  PetscCall(MatCreateVecs(P, &r->diag, NULL));
-  PetscCall(MatGetDiagonal(P, r->diag));
+  if (!r->same) {
+    Mat Pref;
+    PetscCall(PCGetOperators(r->amg, NULL, &Pref));
+    if (!r->rRef) PetscCall(MatCreateVecs(Pref, &r->rRef, &r->zRef));
+    PetscCall(MatCreateVecs(P, &r->diag, NULL));
+    PetscCall(MatGetDiagonal(P, r->diag));
+  }
   PetscFunctionReturn(0);
 }
 

@@ -1,5 +1,9 @@
 #include "signorini/common.h"
 
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
+
 #include <sys/stat.h>
 
 #include <cerrno>
@@ -28,6 +32,13 @@ PetscErrorCode SecondsSince(MPI_Comm comm, PetscLogDouble t0, double *seconds)
   *seconds = t1 - t0;
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, seconds, 1, MPI_DOUBLE, MPI_MAX, comm));
   PetscFunctionReturn(0);
+}
+
+void ReleaseFreedMemory()
+{
+#ifdef __GLIBC__
+  malloc_trim(0);
+#endif
 }
 
 PetscErrorCode CheckAll(MPI_Comm comm, bool ok, const std::string &message)

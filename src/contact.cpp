@@ -54,13 +54,12 @@ PetscErrorCode ContactLowerBound(const Space &space, const Problem &problem, Vec
   PetscFunctionReturn(0);
 }
 
-// psi at contact DOFs, -infinity elsewhere; and the boundary measure each contact DOF carries.
-static PetscErrorCode ContactVectors(const Space &space, const Problem &problem, Vec lower, Vec measure)
+// The boundary measure each contact DOF carries (turns a reaction into a pressure).
+static PetscErrorCode ContactMeasure(const Space &space, const Problem &problem, Vec measure)
 {
   Vec          loc;
   PetscScalar *a;
   PetscFunctionBeginUser;
-  PetscCall(ContactLowerBound(space, problem, lower));
   PetscCall(DMGetLocalVector(space.dm, &loc));
   PetscCall(VecSet(loc, 0));
   PetscCall(VecGetArray(loc, &a));
@@ -362,7 +361,8 @@ PetscErrorCode WriteContactProfile(const Space &space, const Problem &problem, c
   PetscCall(VecDuplicate(u, &lower));
   PetscCall(VecDuplicate(u, &measure));
   PetscCall(VecDuplicate(u, &res));
-  PetscCall(ContactVectors(space, problem, lower, measure));
+  PetscCall(ContactLowerBound(space, problem, lower));
+  PetscCall(ContactMeasure(space, problem, measure));
   PetscCall(MatMult(sys.A, u, res));
   PetscCall(VecAXPY(res, -1.0, sys.b));
   // DOF coordinates as global vectors, so they can be read at owned indices
@@ -450,6 +450,7 @@ static PetscErrorCode TimeLinearSolve(const System &sys, SolveResult &r)
   PetscCall(KSPSetOperators(ksp, sys.A, sys.A));
   PetscCall(ConfigureKSP(ksp));
   PetscCall(KSPSetFromOptions(ksp));
+  ReleaseFreedMemory(); // the memory the contact solve freed is not this solve's to re-use
   PetscCallMPI(MPI_Barrier(comm));
   PetscCall(PetscTime(&t0));
   PetscCall(KSPSolve(ksp, sys.b, x)); // includes the preconditioner set-up
@@ -468,13 +469,13 @@ PetscErrorCode Solve(const Space &space, const Problem &problem, const System &s
   std::vector<std::string> amgDefaults;
   PetscFunctionBeginUser;
   PetscCall(AmgDefaultsInsert(space.dim, amgDefaults));
+  ReleaseFreedMemory();
   PetscCall(StagePush(Stage::Solve));
   PetscCall(PetscTime(&t0));
   r.vi = problem.HasContact();
   if (r.vi) {
     PetscCall(VecDuplicate(u, &lower));
-    PetscCall(VecDuplicate(u, &measure));
-    PetscCall(ContactVectors(space, problem, lower, measure));
+    PetscCall(ContactLowerBound(space, problem, lower));
   }
   // Start inside K_h: from u_D, or from the guess with u_D on Gamma_D and u >= psi on Gamma_C.
   if (!opts.initialGuess) PetscCall(VecCopy(sys.uD, u));
@@ -485,6 +486,10 @@ PetscErrorCode Solve(const Space &space, const Problem &problem, const System &s
   PetscCall(StagePop(Stage::Solve));
   if (opts.compareLinear) PetscCall(TimeLinearSolve(sys, r));
   PetscCall(AmgDefaultsRemoveUnused(amgDefaults));
+  if (r.vi) { // only now: the solve's peak memory need not hold it
+    PetscCall(VecDuplicate(u, &measure));
+    PetscCall(ContactMeasure(space, problem, measure));
+  }
   PetscCall(MeasureKKT(space, sys, u, lower, measure, r));
   PetscCall(DiscreteEnergy(space, sys, u, &r.energy));
   PetscCall(VecDestroy(&lower));
