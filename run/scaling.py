@@ -22,7 +22,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 EXE = os.path.join(ROOT, "build", "signorini")
 sys.path.insert(0, HERE)
-from bench import SETUP, mesh_args, save_png  # noqa: E402
+from bench import SETUP, mesh_args, save_png, warm_memory  # noqa: E402
 
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
 
@@ -161,6 +161,7 @@ def main():
     ap.add_argument("--mpiexec", default=os.environ.get("MPIEXEC", "mpirun"))
     ap.add_argument("--mpiexec-args", default="")
     ap.add_argument("--out", default=os.path.join(ROOT, "results", "scaling"))
+    ap.add_argument("--no-warm-memory", action="store_true", help="do not touch the free memory once before the runs (a virtual machine's first touch is slow; see run/bench.py)")
     args, extra = ap.parse_known_args()
     if args.ranks:
         args.ranks = [int(p) for p in args.ranks.split(",")]
@@ -173,6 +174,8 @@ def main():
     args.strong_n = args.strong_n or (2048 if args.dim == 2 else 96)
     args.weak_n = args.weak_n or (512 if args.dim == 2 else 48)
     os.makedirs(args.out, exist_ok=True)
+    if not args.no_warm_memory:
+        warm_memory()
     results = {}
     title = "%dD %s, paper-5.1 scene" % (args.dim, args.element.upper())
     if "strong" in args.kind:
