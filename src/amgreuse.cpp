@@ -118,20 +118,23 @@ PetscErrorCode ReuseSetUp(PC pc)
   PetscCall(ISGetIndices(inactive, &cur));
   std::vector<PetscInt> unused;
   PetscInt changed = r->amg ? MatchSets(cur, n, r->ref, r->map) : N;
-  PetscInt moved   = r->havePrev ? MatchSets(cur, n, r->prev, unused) : (r->opts.goodStart ? 0 : N);
+  PetscInt moved   = r->havePrev ? MatchSets(cur, n, r->prev, unused) : N;
   PetscInt local[3] = {changed, moved, sorted ? 0 : 1}, global[3];
   PetscCallMPI(MPI_Allreduce(local, global, 3, MPIU_INT, MPI_SUM, comm));
+  const bool first = !r->havePrev;
   r->prev.assign(cur, cur + n);
   r->havePrev = true;
   // Inexact steps: while the active set still moves, a step only has to show where it moves next, so
   // its linear solve stops at inexactRtol; once it has settled, the solve goes to the KSP's tolerances.
+  // From a good start only the first step is inexact: after it the set moves only near the free
+  // boundary, and a second inexact step would only add a third Newton step.
   KSP       ksp;
   PetscReal rtol, atol, dtol;
   PetscInt  maxit;
   PetscCall(SNESGetKSP(r->snes, &ksp));
   PetscCall(KSPGetTolerances(ksp, &rtol, &atol, &dtol, &maxit));
   if (r->tightRtol < 0) r->tightRtol = rtol;
-  const bool loose = r->opts.inexactRtol > 0 && global[1] > r->opts.maxChanged;
+  const bool loose = r->opts.inexactRtol > 0 && (r->opts.goodStart ? first : global[1] > r->opts.maxChanged);
   PetscCall(KSPSetTolerances(ksp, loose ? PetscMax(r->opts.inexactRtol, r->tightRtol) : r->tightRtol, atol, dtol, maxit));
   // A re-used set-up whose last solve needed more than twice the iterations per digit of a fresh one
   // (rate > sqrt(rate after a set-up)) has drifted too far from the current block.
