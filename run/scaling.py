@@ -8,8 +8,9 @@ ranks. Weak scaling: a fixed number of DOFs per rank: with p ranks the domain is
 by side in x, each with N x N cells, so the mesh, the data (f is 1-periodic in x) and the cells per rank do
 not change. P defaults to the cores of this machine; on a cluster, run the script inside a batch job and
 give --max-ranks (or --ranks) and --mpiexec (e.g. "srun", or "mpirun --bind-to core"); the script only builds
-command lines. Efficiency: strong T(1) / (p T(p)), weak T(1) / T(p), from the solve stage and from the
-whole run (set-up + solve)."""
+command lines. Efficiency: strong T(1) / (p T(p)), weak T(1) / T(p), from the solve stage, from the
+whole run (set-up + solve), and, as the reference the machine allows, from one CG + BoomerAMG solve of the
+same operator in the same run (-compare_linear)."""
 import argparse
 import csv
 import json
@@ -33,7 +34,7 @@ def launch(args, ranks, options, tag):
     cmd = shlex.split(args.mpiexec) + ["-n", str(ranks)] + shlex.split(args.mpiexec_args)
     if ranks > (os.cpu_count() or 1) and os.path.basename(shlex.split(args.mpiexec)[0]) in ("mpirun", "mpiexec"):
         cmd.append("--oversubscribe")  # Open MPI refuses more ranks than cores otherwise
-    cmd += [EXE] + options + ["-summary", summary, "-log_view", ":" + log]
+    cmd += [EXE] + options + ["-compare_linear", "-summary", summary, "-log_view", ":" + log]
     p = subprocess.run(cmd, capture_output=True, text=True, env=ENV)
     if p.returncode != 0 or not os.path.exists(summary):
         sys.stderr.write(" ".join(cmd) + "\n" + p.stdout + p.stderr)
@@ -61,8 +62,8 @@ def strong(args, extra):
     base = next((r for r in rows if r["status"] == "ok"), None)
     for r in rows:
         if base and r["status"] == "ok":
-            r["eff_solve"] = base["solve_s"] * base["ranks"] / (r["solve_s"] * r["ranks"])
-            r["eff_total"] = base["total_s"] * base["ranks"] / (r["total_s"] * r["ranks"])
+            for k in ["solve", "total", "linear"]:
+                r["eff_" + k] = base[k + "_s"] * base["ranks"] / (r[k + "_s"] * r["ranks"])
     return rows
 
 
@@ -79,8 +80,8 @@ def weak(args, extra):
     base = next((r for r in rows if r["status"] == "ok"), None)
     for r in rows:
         if base and r["status"] == "ok":
-            r["eff_solve"] = base["solve_s"] / r["solve_s"]
-            r["eff_total"] = base["total_s"] / r["total_s"]
+            for k in ["solve", "total", "linear"]:
+                r["eff_" + k] = base[k + "_s"] / r[k + "_s"]
     return rows
 
 
@@ -92,22 +93,23 @@ def row(kind, ranks, s):
     imbalance = max(per_rank) / (sum(per_rank) / len(per_rank)) if per_rank else 1.0
     return {"kind": kind, "ranks": ranks, "status": "ok", "dofs": s["dofs"], "newton": s["solver"]["newton_iterations"],
             "ksp": s["solver"].get("ksp_iterations_total", s["solver"]["ksp_iterations"]), "solve_s": solve, "total_s": total,
+            "linear_s": s["solver"]["linear_solve_seconds"],
             "edge_cut": s.get("edge_cut", -1), "imbalance": imbalance, "energy": s["energy"]}
 
 
 def print_rows(title, rows):
     print("\n%s" % title)
-    print("%6s %11s %11s %6s %6s %9s %9s %8s %8s %9s %9s" % ("ranks", "DOFs", "DOFs/rank", "Newton", "KSP", "solve[s]", "total[s]", "eff(sol)", "eff(tot)", "edge cut", "imbalance"))
+    print("%6s %11s %11s %6s %6s %9s %9s %9s %8s %8s %8s %9s %9s" % ("ranks", "DOFs", "DOFs/rank", "Newton", "KSP", "solve[s]", "total[s]", "linear[s]", "eff(sol)", "eff(tot)", "eff(lin)", "edge cut", "imbalance"))
     for r in rows:
         if r["status"] != "ok":
             print("%6d  failed" % r["ranks"])
             continue
-        print("%6d %11d %11d %6d %6d %9.3f %9.3f %7.0f%% %7.0f%% %9d %9.3f" % (r["ranks"], r["dofs"], r["dofs"] // r["ranks"], r["newton"], r["ksp"], r["solve_s"], r["total_s"],
-                                                                            100 * r.get("eff_solve", 0), 100 * r.get("eff_total", 0), r["edge_cut"], r["imbalance"]))
+        print("%6d %11d %11d %6d %6d %9.3f %9.3f %9.3f %7.0f%% %7.0f%% %7.0f%% %9d %9.3f" % (r["ranks"], r["dofs"], r["dofs"] // r["ranks"], r["newton"], r["ksp"], r["solve_s"], r["total_s"], r["linear_s"],
+                                                                                           100 * r.get("eff_solve", 0), 100 * r.get("eff_total", 0), 100 * r.get("eff_linear", 0), r["edge_cut"], r["imbalance"]))
 
 
 def write_csv(rows, path):
-    keys = ["kind", "ranks", "dofs", "newton", "ksp", "solve_s", "total_s", "eff_solve", "eff_total", "edge_cut", "imbalance", "energy", "status"]
+    keys = ["kind", "ranks", "dofs", "newton", "ksp", "solve_s", "total_s", "linear_s", "eff_solve", "eff_total", "eff_linear", "edge_cut", "imbalance", "energy", "status"]
     with open(path + ".tmp", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=keys, extrasaction="ignore")
         w.writeheader()
@@ -131,6 +133,7 @@ def plot(results, path, title):
         axes[0].plot(ps, [r["total_s"] for r in ok], "s--", label="%s: set-up + solve" % kind)
         axes[1].plot(ps, [100 * r["eff_solve"] for r in ok], "o-", label="%s: solve" % kind)
         axes[1].plot(ps, [100 * r["eff_total"] for r in ok], "s--", label="%s: set-up + solve" % kind)
+        axes[1].plot(ps, [100 * r["eff_linear"] for r in ok], "^:", label="%s: one linear solve" % kind)
     if "strong" in results and any(r["status"] == "ok" for r in results["strong"]):
         ok = [r for r in results["strong"] if r["status"] == "ok"]
         axes[0].plot([r["ranks"] for r in ok], [ok[0]["solve_s"] * ok[0]["ranks"] / r["ranks"] for r in ok], "k:", label="ideal strong (solve)")
