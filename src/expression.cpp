@@ -26,9 +26,13 @@ PetscErrorCode Expression::Create(MPI_Comm comm, const std::string &option, cons
     e.parser_->DefineConst("pi", M_PI);
     e.parser_->DefineConst("Pi", M_PI);
     e.parser_->SetExpr(text);
-    int n = 0;
-    e.parser_->Eval(n); // muparser parses lazily: evaluate once so syntax errors surface here
+    int           n = 0;
+    const double *v = e.parser_->Eval(n); // muparser parses lazily: evaluate once so syntax errors surface here
     if (n != components) message = Format("option %s: '%s' has %d component(s), expected %d", option.c_str(), text.c_str(), n, components);
+    else if (e.parser_->GetUsedVar().empty()) {
+      e.constant_ = true;
+      for (int c = 0; c < n && c < 3; ++c) e.value_[c] = v[c];
+    }
   } catch (mu::Parser::exception_type &err) {
     std::string what = err.GetMsg();
     what.erase(what.find_last_not_of(" .") + 1);
@@ -47,7 +51,7 @@ bool Expression::Eval(const PetscReal x[], PetscInt dim, PetscReal values[], std
   int           n = 0;
   const double *v = nullptr;
   try {
-    v = parser_->Eval(n);
+    v = constant_ ? value_.data() : parser_->Eval(n);
   } catch (mu::Parser::exception_type &err) {
     if (error.empty()) error = Format("option %s: evaluating '%s' failed: %s", option_.c_str(), text_.c_str(), err.GetMsg().c_str());
     return false;

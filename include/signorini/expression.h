@@ -42,6 +42,10 @@ private:
   std::string                   option_, text_;
   int                           components_ = 1;
   bool                          zero_       = false;
+  // An expression that uses no variable (kappa = 1, psi = 0) is evaluated once: set-up evaluates kappa
+  // in every cell of every level, and the parser costs about as much as the rest of the cell's work.
+  bool                          constant_   = false;
+  std::array<double, 3>         value_{};
 };
 
 } // namespace signorini
