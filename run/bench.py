@@ -11,7 +11,10 @@ DOFs, Newton steps on the finest level (and in all levels of nested iteration), 
 -log_view stages, set-up (mesh + distribute + refine + setup + assemble), the ratio VI solve / linear
 solve, microseconds per DOF (set-up + solve) and bytes per DOF (peak RSS, summed over ranks); then the
 issue's targets with the measured figures. Writes bench.csv and time-per-dof.png.
-With --presets, also runs every option file of petsc-options/solvers on one mid-size mesh per dimension."""
+With --presets, also runs every option file of petsc-options/solvers on one mid-size mesh per dimension.
+Before the first run the free memory is touched once (see warm_memory; --no-warm-memory skips it), and each
+timed solve starts with the memory freed before it given back to the system (-compare_linear), so that the
+contact solve and the linear solve it is compared with start alike."""
 import argparse
 import csv
 import glob

@@ -213,7 +213,7 @@ SolveResult::Level LevelSummary(const Space &space, const SolveResult &r, double
 }
 } // namespace
 
-PetscErrorCode NestedSolve(const MeshLevels &levels, const Problem &problem, const AssemblyOptions &assembly, const Space &fine, const System &fineSys, Vec u, SolveResult &r, const SolveOptions &opts)
+PetscErrorCode NestedSolve(MeshLevels &levels, const Problem &problem, const AssemblyOptions &assembly, const Space &fine, const System &fineSys, Vec u, SolveResult &r, const SolveOptions &opts)
 {
   const PetscInt                  L = levels.Count();
   Level                           prev;
@@ -232,6 +232,7 @@ PetscErrorCode NestedSolve(const MeshLevels &levels, const Problem &problem, con
     if (l > 0) {
       PetscCall(ProlongateLevel(prev, cur.space, levels.parent[l], problem, cur.u, prolongSeconds));
       PetscCall(prev.Destroy());
+      PetscCall(DMDestroy(&levels.dm[l - 1])); // its last user is gone: the finest solve can use the memory
     }
     PetscCall(Solve(cur.space, problem, cur.sys, cur.u, lr, lo));
     summary.push_back(LevelSummary(cur.space, lr, setupSeconds, prolongSeconds));
@@ -244,6 +245,7 @@ PetscErrorCode NestedSolve(const MeshLevels &levels, const Problem &problem, con
   if (L > 1) {
     PetscCall(ProlongateLevel(prev, fine, levels.parent[L - 1], problem, u, prolongSeconds));
     PetscCall(prev.Destroy());
+    PetscCall(DMDestroy(&levels.dm[L - 2]));
     fo.initialGuess = true;
   }
   PetscCall(Solve(fine, problem, fineSys, u, r, fo));

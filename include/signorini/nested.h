@@ -36,7 +36,9 @@ PetscErrorCode TransferActiveSet(const Space &coarse, Vec uH, Vec lowerH, const 
 // space and system, created and destroyed here) and prolongated, and the finest level, whose space and
 // system the caller owns, is solved from the last prolongation into u. result receives the finest solve
 // plus one entry per level in result.levels (the finest level's set-up time is the caller's to fill) and
-// the time of all solves together in result.solveSeconds.
-PetscErrorCode NestedSolve(const MeshLevels &levels, const Problem &problem, const AssemblyOptions &assembly, const Space &fine, const System &fineSys, Vec u, SolveResult &result, const SolveOptions &opts);
+// the time of all solves together in result.solveSeconds. Each coarse mesh of `levels` is destroyed
+// (its entry set to NULL) as soon as the next level no longer needs it, so that the finest solve, the
+// peak of the run's memory, does not hold them.
+PetscErrorCode NestedSolve(MeshLevels &levels, const Problem &problem, const AssemblyOptions &assembly, const Space &fine, const System &fineSys, Vec u, SolveResult &result, const SolveOptions &opts);
 
 } // namespace signorini
