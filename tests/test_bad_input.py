@@ -101,6 +101,9 @@ with tempfile.TemporaryDirectory() as inputs:
         ("obstacle above u_D where Gamma_D meets Gamma_C", ["-bc_dirichlet", "3,4", "-bc_neumann", "2", "-psi", "0.5 - x"], "infeasible", True),
         ("f NaN", ["-f", "sqrt(x - 0.5)"], "option -f:", True),
         ("f infinite", ["-f", "1 / (x - x)"], "option -f:", True),
+        # expressions without variables are evaluated once; a non-finite constant must still be caught
+        ("kappa an infinite constant", ["-kappa", "1 / 0"], "option -kappa:", True),
+        ("psi a NaN constant", ["-psi", "sqrt(-1)"], "option -psi:", True),
         ("g NaN on Gamma_N", ["-g", "sqrt(y - 2)"], "option -g:", True),
         ("u_D NaN on Gamma_D", ["-u_D", "log(x - 0.5)"], "option -u_D:", True),
         ("psi NaN on Gamma_C", ["-psi", "sqrt(x - 0.5)"], "option -psi:", True),
