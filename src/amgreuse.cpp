@@ -12,7 +12,7 @@ PetscErrorCode AmgReuseOptionsFromCommandLine(MPI_Comm comm, AmgReuseOptions &o)
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Linear solves of the Newton steps of the contact solve", "signorini");
   PetscCall(PetscOptionsBool("-amg_reuse", "Keep the BoomerAMG set-up across Newton steps while the inactive set changes little (off: a new set-up every step)", "", enabled, &enabled, NULL));
-  PetscCall(PetscOptionsReal("-vi_inexact_rtol", "Relative tolerance of the linear solves of Newton steps whose active set still moves (0: every step to the KSP tolerance)", "", o.inexactRtol, &o.inexactRtol, NULL));
+  PetscCall(PetscOptionsReal("-vi_inexact_rtol", "Relative tolerance of the linear solves of Newton steps whose active set still moves; from a nested-iteration guess, of the first step only (0: every step to the KSP tolerance)", "", o.inexactRtol, &o.inexactRtol, NULL));
   char type[64];
   PetscBool set;
   PetscCall(PetscStrncpy(type, o.innerType.c_str(), sizeof(type)));
