@@ -41,7 +41,6 @@ PetscErrorCode Expression::Create(MPI_Comm comm, const std::string &option, cons
   }
   // Every rank parses the same text, so every rank reaches the same verdict.
   if (!message.empty()) SIGNORINI_INPUT_ERROR(comm, "%s", message.c_str());
-  e.zero_ = (components == 1 && text.find_first_not_of(" 0.") == std::string::npos && text.find('0') != std::string::npos);
   PetscFunctionReturn(0);
 }
 

@@ -152,18 +152,6 @@ static PetscErrorCode CreateBox(MPI_Comm comm, const MeshOptions &o, DM *dm, std
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ClosureVertices(DM dm, PetscInt p, PetscInt vStart, PetscInt vEnd, std::vector<PetscInt> &verts)
-{
-  PetscInt *closure = nullptr, n;
-  PetscFunctionBeginUser;
-  verts.clear();
-  PetscCall(DMPlexGetTransitiveClosure(dm, p, PETSC_TRUE, &n, &closure));
-  for (PetscInt i = 0; i < n; ++i)
-    if (closure[2 * i] >= vStart && closure[2 * i] < vEnd) verts.push_back(closure[2 * i]);
-  PetscCall(DMPlexRestoreTransitiveClosure(dm, p, PETSC_TRUE, &n, &closure));
-  PetscFunctionReturn(0);
-}
-
 PetscErrorCode SimplexVertices(DM dm, PetscInt p, PetscInt depth, PetscInt verts[4])
 {
   const PetscInt *cone;
@@ -199,20 +187,18 @@ static std::string CheckNoFolds(DM dm, const std::string &name)
     PetscSectionGetOffset(csec, v, &off);
     return PetscRealPart(x[off + d]);
   };
-  std::vector<PetscInt> fv, cv;
-  PetscInt              vStart, vEnd;
-  if (DMPlexGetDepthStratum(dm, 0, &vStart, &vEnd)) return name + ": cannot query the mesh vertices";
+  PetscInt fv[4], cv[4];
   for (PetscInt f = fStart; f < fEnd && problem.empty(); ++f) {
     PetscInt        ns;
     const PetscInt *supp;
     if (DMPlexGetSupportSize(dm, f, &ns) || DMPlexGetSupport(dm, f, &supp) || ns != 2) continue;
-    if (ClosureVertices(dm, f, vStart, vEnd, fv)) return name + ": cannot query the mesh faces";
+    if (SimplexVertices(dm, f, dim - 1, fv)) return name + ": cannot query the mesh faces";
     PetscReal side[2];
     for (int k = 0; k < 2; ++k) {
-      if (ClosureVertices(dm, supp[k], vStart, vEnd, cv)) return name + ": cannot query the mesh cells";
+      if (SimplexVertices(dm, supp[k], dim, cv)) return name + ": cannot query the mesh cells";
       PetscInt opp = -1;
-      for (PetscInt v : cv)
-        if (std::find(fv.begin(), fv.end(), v) == fv.end()) opp = v;
+      for (PetscInt i = 0; i <= dim; ++i)
+        if (std::find(fv, fv + dim, cv[i]) == fv + dim) opp = cv[i];
       // signed measure of the simplex (face vertices, opposite vertex): its sign says which side opp is on
       std::vector<PetscReal> X;
       for (PetscInt i = 0; i <= dim; ++i)

@@ -313,7 +313,7 @@ static PetscErrorCode CheckObstacleMeetsDirichlet(const Space &s, const Problem 
   Vec                coords;
   PetscSection       csec;
   const PetscScalar *xa;
-  std::vector<PetscInt> verts;
+  PetscInt           verts[4];
   std::string        problemText, error;
   PetscFunctionBeginUser;
   PetscCall(DMPlexGetChart(s.dm, &pStart, &pEnd));
@@ -323,8 +323,8 @@ static PetscErrorCode CheckObstacleMeetsDirichlet(const Space &s, const Problem 
     const bool dirichlet = std::count(problem.dirichlet.begin(), problem.dirichlet.end(), bf.part) > 0;
     const bool contact   = std::count(problem.contact.begin(), problem.contact.end(), bf.part) > 0;
     if (!dirichlet && !contact) continue;
-    PetscCall(ClosureVertices(s.dm, bf.face, vStart, vEnd, verts));
-    for (PetscInt v : verts) flags[v - pStart] |= dirichlet ? 1 : 2;
+    PetscCall(SimplexVertices(s.dm, bf.face, s.dim - 1, verts));
+    for (PetscInt i = 0; i < s.dim; ++i) flags[verts[i] - pStart] |= dirichlet ? 1 : 2;
   }
   std::vector<PetscInt> owned(flags);
   std::vector<char>     isLeaf(pEnd - pStart, 0);

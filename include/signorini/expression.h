@@ -31,8 +31,8 @@ public:
   void               SetCellSet(PetscInt v) const { cellSet_ = (double)v; }
   const std::string &Text() const { return text_; }
   const std::string &Option() const { return option_; }
-  // True when the text is the constant 0, so that an integral of it can be skipped.
-  bool IsZero() const { return zero_; }
+  // True when the expression is the constant 0, so that an integral of it can be skipped.
+  bool IsZero() const { return constant_ && components_ == 1 && value_[0] == 0; }
 
 private:
   Expression() = default;
@@ -41,7 +41,6 @@ private:
   mutable double                cellSet_ = -1;
   std::string                   option_, text_;
   int                           components_ = 1;
-  bool                          zero_       = false;
   // An expression that uses no variable (kappa = 1, psi = 0) is evaluated once: set-up evaluates kappa
   // in every cell of every level, and the parser costs about as much as the rest of the cell's work.
   bool                          constant_   = false;

@@ -37,12 +37,10 @@ struct MeshInfo {
 };
 
 PetscErrorCode MeshOptionsFromCommandLine(MPI_Comm comm, MeshOptions &opts);
-// Vertices (depth-0 points, vStart <= v < vEnd) in the closure of mesh point p, in closure order.
-PetscErrorCode ClosureVertices(DM dm, PetscInt p, PetscInt vStart, PetscInt vEnd, std::vector<PetscInt> &verts);
 // The d + 1 vertices of a simplex mesh point p of depth d (1: edge, 2: triangle, 3: tetrahedron), found by
 // descending cones: the vertices of the first cone point, then the one vertex of the second that is not
 // among them. Every table that lists a cell's vertices uses this order. Much cheaper than a transitive
-// closure, which the cell tables would otherwise compute d + 2 times per cell.
+// closure (the cell tables need d + 2 of these per cell).
 PetscErrorCode SimplexVertices(DM dm, PetscInt p, PetscInt depth, PetscInt verts[4]);
 // Longest edge of the mesh (max over ranks).
 PetscErrorCode MeshSize(DM dm, PetscReal *hmax);
