@@ -27,6 +27,8 @@ PetscErrorCode AmgReuseOptionsFromCommandLine(MPI_Comm comm, AmgReuseOptions &o)
 }
 
 namespace {
+const char *const kShellName = "BoomerAMG re-used across active sets";
+
 struct Reuse {
   SNES            snes = nullptr;
   std::string     innerType = PCHYPRE;    // the preconditioner built for a block
@@ -223,6 +225,82 @@ PetscErrorCode ReuseView(PC pc, PetscViewer viewer)
 }
 } // namespace
 
+namespace {
+// The operations of A that SNES and the reduced-space solver use, and its blocks in hypre's format.
+PetscErrorCode BlockMult(Mat J, Vec x, Vec y)
+{
+  Mat A;
+  PetscFunctionBeginUser;
+  PetscCall(MatShellGetContext(J, &A));
+  PetscCall(MatMult(A, x, y));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode BlockMultTranspose(Mat J, Vec x, Vec y)
+{
+  Mat A;
+  PetscFunctionBeginUser;
+  PetscCall(MatShellGetContext(J, &A));
+  PetscCall(MatMultTranspose(A, x, y));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode BlockGetDiagonal(Mat J, Vec d)
+{
+  Mat A;
+  PetscFunctionBeginUser;
+  PetscCall(MatShellGetContext(J, &A));
+  PetscCall(MatGetDiagonal(A, d));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode BlockCreateSubMatrix(Mat J, IS rows, IS cols, MatReuse reuse, Mat *B)
+{
+  Mat A, aij;
+  PetscFunctionBeginUser;
+  PetscCall(MatShellGetContext(J, &A));
+  PetscCheck(reuse == MAT_INITIAL_MATRIX, PetscObjectComm((PetscObject)J), PETSC_ERR_SUP, "only new blocks of the contact Jacobian");
+  PetscCall(MatCreateSubMatrix(A, rows, cols, MAT_INITIAL_MATRIX, &aij));
+  PetscCall(MatConvert(aij, MATHYPRE, MAT_INITIAL_MATRIX, B));
+  PetscCall(MatDestroy(&aij));
+  PetscFunctionReturn(0);
+}
+} // namespace
+
+PetscErrorCode AmgReuseJacobian(SNES snes, Mat A, Mat *J)
+{
+  KSP       ksp;
+  PC        pc;
+  PetscBool shell, rsls;
+  PetscFunctionBeginUser;
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(KSPGetPC(ksp, &pc));
+  PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCSHELL, &shell));
+  PetscCall(PetscObjectTypeCompare((PetscObject)snes, SNESVINEWTONRSLS, &rsls));
+  bool hypre = false;
+  if (shell && rsls) {
+    const char *name;
+    PetscCall(PCShellGetName(pc, &name));
+    Reuse *r;
+    PetscCall(PCShellGetContext(pc, &r));
+    hypre = name && std::string(name) == kShellName && r->innerType == PCHYPRE;
+  }
+  if (!hypre) {
+    PetscCall(PetscObjectReference((PetscObject)A));
+    *J = A;
+    PetscFunctionReturn(0);
+  }
+  PetscInt m, n, M, N;
+  PetscCall(MatGetLocalSize(A, &m, &n));
+  PetscCall(MatGetSize(A, &M, &N));
+  PetscCall(MatCreateShell(PetscObjectComm((PetscObject)A), m, n, M, N, A, J));
+  PetscCall(MatShellSetOperation(*J, MATOP_MULT, (void (*)(void))BlockMult));
+  PetscCall(MatShellSetOperation(*J, MATOP_MULT_TRANSPOSE, (void (*)(void))BlockMultTranspose));
+  PetscCall(MatShellSetOperation(*J, MATOP_GET_DIAGONAL, (void (*)(void))BlockGetDiagonal));
+  PetscCall(MatShellSetOperation(*J, MATOP_CREATE_SUBMATRIX, (void (*)(void))BlockCreateSubMatrix));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode AmgReuseInstall(SNES snes, const AmgReuseOptions &o, AmgReuseStats *stats)
 {
   KSP ksp;
@@ -237,7 +315,7 @@ PetscErrorCode AmgReuseInstall(SNES snes, const AmgReuseOptions &o, AmgReuseStat
   PetscCall(KSPGetPC(ksp, &pc));
   PetscCall(PCSetType(pc, PCSHELL));
   PetscCall(PCShellSetContext(pc, r));
-  PetscCall(PCShellSetName(pc, "BoomerAMG re-used across active sets"));
+  PetscCall(PCShellSetName(pc, kShellName));
   PetscCall(PCShellSetSetUp(pc, ReuseSetUp));
   PetscCall(PCShellSetApply(pc, ReuseApply));
   PetscCall(PCShellSetView(pc, ReuseView));

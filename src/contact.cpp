@@ -11,8 +11,9 @@ namespace signorini {
 
 namespace {
 struct ResidualContext {
-  Mat A;
-  Vec b;
+  Mat  A;
+  Vec  b;
+  bool refresh = false; // J is a copy of A that the solver overwrites (SSLS)
 };
 
 // F(u) = A u - b: the problem is linear, only the bounds make it a complementarity problem.
@@ -26,13 +27,14 @@ PetscErrorCode Residual(SNES, Vec u, Vec F, void *ctx)
 }
 
 // A is assembled once. The reduced-space solver (RSLS) only extracts the inactive-set block from it, so
-// J = A and nothing is done here. The semismooth solver (SSLS) overwrites J with its own Jacobian
-// D_a + D_b A, so for it J is a copy of A refreshed before every step (F = A u - b must keep the original A).
+// J acts as A (A itself, or the shell of AmgReuseJacobian) and nothing is done here. The semismooth
+// solver (SSLS) overwrites J with its own Jacobian D_a + D_b A, so for it J is a copy of A refreshed
+// before every step (F = A u - b must keep the original A).
 PetscErrorCode ConstantJacobian(SNES, Vec, Mat J, Mat, void *ctx)
 {
   auto *c = static_cast<ResidualContext *>(ctx);
   PetscFunctionBeginUser;
-  if (J != c->A) PetscCall(MatCopy(c->A, J, SAME_NONZERO_PATTERN));
+  if (c->refresh) PetscCall(MatCopy(c->A, J, SAME_NONZERO_PATTERN));
   PetscFunctionReturn(0);
 }
 
@@ -187,16 +189,16 @@ static PetscErrorCode StraightStartNorm(SNES snes, const System &sys, Vec lower,
   PetscFunctionReturn(0);
 }
 
-// What the options chose, made to work where it can be. Another SNESVI type (-snes_type vinewtonssls)
+// What the options chose, made to work where it can be. RSLS gets the Jacobian of AmgReuseJacobian
+// (blocks in hypre's format when BoomerAMG is inside the re-use shell). Another SNESVI type (-snes_type vinewtonssls)
 // needs its own Jacobian matrix (see ConstantJacobian), and it solves the full system, where the AMG
 // re-use shell, which works on the reduced-space solver's inactive sets, does not apply: plain BoomerAMG
 // takes its place.
-static PetscErrorCode AdaptToSNESType(SNES snes, const System &sys, Mat *J)
+static PetscErrorCode AdaptToSNESType(SNES snes, const System &sys, ResidualContext &ctx, Mat *J)
 {
   PetscBool rsls, shell;
   KSP       ksp;
   PC        pc;
-  void     *ctx;
   PetscFunctionBeginUser;
   PetscCall(PetscObjectTypeCompare((PetscObject)snes, SNESVINEWTONRSLS, &rsls));
   PetscCall(SNESGetKSP(snes, &ksp));
@@ -212,11 +214,13 @@ static PetscErrorCode AdaptToSNESType(SNES snes, const System &sys, Mat *J)
       PetscCall(PCGetType(pc, &type));
       SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)snes), "option -pc_type %s: the reduced-space contact solve cannot keep a multigrid preconditioner across active sets of different size (PETSc 3.18); use -vi_pc_type %s, which builds one for each active set", type, type);
     }
+    PetscCall(AmgReuseJacobian(snes, sys.A, J));
+    PetscCall(SNESSetJacobian(snes, *J, *J, ConstantJacobian, &ctx));
     PetscFunctionReturn(0);
   }
-  PetscCall(SNESGetJacobian(snes, NULL, NULL, NULL, &ctx));
   PetscCall(MatDuplicate(sys.A, MAT_COPY_VALUES, J));
-  PetscCall(SNESSetJacobian(snes, *J, *J, ConstantJacobian, ctx));
+  ctx.refresh = true;
+  PetscCall(SNESSetJacobian(snes, *J, *J, ConstantJacobian, &ctx));
   if (shell) {
     PetscCall(PCSetType(pc, PCHYPRE));
     PetscCall(PCHYPRESetType(pc, "boomeramg"));
@@ -249,7 +253,7 @@ static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &
   reuse.goodStart       = opts.initialGuess;
   PetscCall(AmgReuseInstall(snes, reuse, &r.amg));
   PetscCall(SNESSetFromOptions(snes));
-  PetscCall(AdaptToSNESType(snes, sys, &J));
+  PetscCall(AdaptToSNESType(snes, sys, ctx, &J));
   PetscReal atol, rtol, stol;
   PetscInt  maxit, maxf;
   PetscCall(SNESGetTolerances(snes, &atol, &rtol, &stol, &maxit, &maxf));
