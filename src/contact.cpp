@@ -481,6 +481,7 @@ PetscErrorCode Solve(const Space &space, const Problem &problem, const System &s
     PetscCall(VecDuplicate(u, &lower));
     PetscCall(ContactLowerBound(space, problem, lower));
   }
+  PetscCall(SpaceReleaseWorkVectors(space));
   // Start inside K_h: from u_D, or from the guess with u_D on Gamma_D and u >= psi on Gamma_C.
   if (!opts.initialGuess) PetscCall(VecCopy(sys.uD, u));
   PetscCall(ProjectOntoConstraints(sys, space.dirichletOwned, lower, u));

@@ -247,51 +247,47 @@ static PetscErrorCode CollectBoundary(Space &s, const Problem &problem, PetscInt
 }
 
 // Marks Dirichlet and contact DOFs. A P1 vertex where Gamma_D meets Gamma_C is Dirichlet. Flags are summed
-// over ranks so that a vertex shared by two ranks gets the same kind on both.
+// over ranks so that a vertex shared by two ranks gets the same kind on both: each face of a part adds
+// kDirichletFlag or kContactFlag to its DOFs, and a sum tells both flags apart exactly (fewer than
+// kDirichletFlag faces meet at a DOF), so one local and one global vector do for both kinds.
 static PetscErrorCode ClassifyDofs(Space &s, const Problem &problem)
 {
-  Vec          lflag[2], gflag[2];
+  const PetscReal kDirichletFlag = 4096, kContactFlag = 1;
+  Vec          lflag, gflag;
   PetscScalar *a;
   PetscFunctionBeginUser;
-  for (int k = 0; k < 2; ++k) {
-    PetscCall(DMGetLocalVector(s.dm, &lflag[k]));
-    PetscCall(DMGetGlobalVector(s.dm, &gflag[k]));
-    PetscCall(VecSet(lflag[k], 0));
-    PetscCall(VecSet(gflag[k], 0));
+  PetscCall(DMCreateLocalVector(s.dm, &lflag));
+  PetscCall(DMCreateGlobalVector(s.dm, &gflag));
+  PetscCall(VecSet(lflag, 0));
+  PetscCall(VecSet(gflag, 0));
+  PetscCall(VecGetArray(lflag, &a));
+  for (const BoundaryFace &bf : s.boundary) {
+    const bool dirichlet = std::find(problem.dirichlet.begin(), problem.dirichlet.end(), bf.part) != problem.dirichlet.end();
+    const bool contact   = std::find(problem.contact.begin(), problem.contact.end(), bf.part) != problem.contact.end();
+    if (!dirichlet && !contact) continue;
+    const PetscReal flag = dirichlet ? kDirichletFlag : kContactFlag;
+    if (s.element == Element::CR) a[bf.dof] += flag;
+    else
+      for (PetscInt i = 0; i < s.Nb(); ++i)
+        if (i != bf.opposite) a[s.Dofs(bf.cell)[i]] += flag;
   }
-  for (int k = 0; k < 2; ++k) {
-    const std::vector<PetscInt> &parts = k == 0 ? problem.dirichlet : problem.contact;
-    PetscCall(VecGetArray(lflag[k], &a));
-    for (const BoundaryFace &bf : s.boundary) {
-      if (std::find(parts.begin(), parts.end(), bf.part) == parts.end()) continue;
-      if (s.element == Element::CR) a[bf.dof] = 1;
-      else
-        for (PetscInt i = 0; i < s.Nb(); ++i)
-          if (i != bf.opposite) a[s.Dofs(bf.cell)[i]] = 1;
-    }
-    PetscCall(VecRestoreArray(lflag[k], &a));
-    PetscCall(DMLocalToGlobal(s.dm, lflag[k], ADD_VALUES, gflag[k]));
-    PetscCall(DMGlobalToLocal(s.dm, gflag[k], INSERT_VALUES, lflag[k]));
-  }
-  const PetscScalar *ld, *lc, *gd, *gc;
-  PetscCall(VecGetArrayRead(lflag[0], &ld));
-  PetscCall(VecGetArrayRead(lflag[1], &lc));
-  s.kindLocal.assign(s.numLocal, kFree);
-  for (PetscInt i = 0; i < s.numLocal; ++i) s.kindLocal[i] = PetscRealPart(ld[i]) > 0 ? kDirichlet : (PetscRealPart(lc[i]) > 0 ? kContact : kFree);
-  PetscCall(VecRestoreArrayRead(lflag[0], &ld));
-  PetscCall(VecRestoreArrayRead(lflag[1], &lc));
-  PetscCall(VecGetArrayRead(gflag[0], &gd));
-  PetscCall(VecGetArrayRead(gflag[1], &gc));
+  PetscCall(VecRestoreArray(lflag, &a));
+  PetscCall(DMLocalToGlobal(s.dm, lflag, ADD_VALUES, gflag));
+  PetscCall(DMGlobalToLocal(s.dm, gflag, INSERT_VALUES, lflag));
+  const auto kind = [&](PetscScalar v) { return PetscRealPart(v) >= kDirichletFlag ? kDirichlet : (PetscRealPart(v) > 0 ? kContact : kFree); };
+  const PetscScalar *l, *g;
+  PetscCall(VecGetArrayRead(lflag, &l));
+  s.kindLocal.resize(s.numLocal);
+  for (PetscInt i = 0; i < s.numLocal; ++i) s.kindLocal[i] = kind(l[i]);
+  PetscCall(VecRestoreArrayRead(lflag, &l));
+  PetscCall(VecGetArrayRead(gflag, &g));
   for (PetscInt i = 0; i < s.numOwned; ++i) {
-    if (PetscRealPart(gd[i]) > 0) s.dirichletOwned.push_back(i);
-    else if (PetscRealPart(gc[i]) > 0) s.contactOwned.push_back(i);
+    if (kind(g[i]) == kDirichlet) s.dirichletOwned.push_back(i);
+    else if (kind(g[i]) == kContact) s.contactOwned.push_back(i);
   }
-  PetscCall(VecRestoreArrayRead(gflag[0], &gd));
-  PetscCall(VecRestoreArrayRead(gflag[1], &gc));
-  for (int k = 0; k < 2; ++k) {
-    PetscCall(DMRestoreLocalVector(s.dm, &lflag[k]));
-    PetscCall(DMRestoreGlobalVector(s.dm, &gflag[k]));
-  }
+  PetscCall(VecRestoreArrayRead(gflag, &g));
+  PetscCall(VecDestroy(&lflag));
+  PetscCall(VecDestroy(&gflag));
   PetscInt counts[2] = {(PetscInt)s.dirichletOwned.size(), (PetscInt)s.contactOwned.size()}, sums[2];
   PetscCallMPI(MPI_Allreduce(counts, sums, 2, MPIU_INT, MPI_SUM, PetscObjectComm((PetscObject)s.dm)));
   s.numDirichletGlobal = sums[0];
@@ -371,6 +367,14 @@ PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Spa
   PetscCall(CollectBoundary(s, problem, fStart, fEnd));
   PetscCall(ClassifyDofs(s, problem));
   if (problem.HasContact() && !problem.dirichlet.empty()) PetscCall(CheckObstacleMeetsDirichlet(s, problem));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SpaceReleaseWorkVectors(const Space &s)
+{
+  PetscFunctionBeginUser;
+  PetscCall(DMClearLocalVectors(s.dm));
+  PetscCall(DMClearGlobalVectors(s.dm));
   PetscFunctionReturn(0);
 }
 

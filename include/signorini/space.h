@@ -81,5 +81,8 @@ PetscErrorCode ElementFromCommandLine(MPI_Comm comm, Element &e);
 // and that psi <= u_D where Gamma_D and Gamma_C meet (otherwise no u in H^1 satisfies both).
 PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Space &space);
 PetscErrorCode SpaceDestroy(Space &space);
+// The DM keeps the work vectors of DMGetLocalVector/DMGetGlobalVector after they are restored, for the
+// next caller; at 10^7 DOFs each is 80 MB that should not stay through a solve. Frees them.
+PetscErrorCode SpaceReleaseWorkVectors(const Space &space);
 
 } // namespace signorini
