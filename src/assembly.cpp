@@ -97,8 +97,9 @@ static void AssembleNeumann(const Space &space, const Problem &problem, const Sy
 static void DirichletValues(const Space &space, const Problem &problem, const System &sys, PetscScalar *u, std::string &error)
 {
   if (space.element == Element::P1) {
-    for (PetscInt i = 0; i < space.numLocal; ++i)
-      if (space.kindLocal[i] == kDirichlet) u[i] = problem.uD->Scalar(&space.dofPoint[i * space.dim], space.dim, error);
+    space.ForEachBoundaryDof([&](PetscInt i, const PetscReal *x) {
+      if (space.kindLocal[i] == kDirichlet) u[i] = problem.uD->Scalar(x, space.dim, error);
+    });
     return;
   }
   PetscReal lambda[4], x[3];

@@ -48,7 +48,10 @@ PetscErrorCode ContactLowerBound(const Space &space, const Problem &problem, Vec
   PetscFunctionBeginUser;
   PetscCall(DMGetLocalVector(space.dm, &loc));
   PetscCall(VecGetArray(loc, &a));
-  for (PetscInt i = 0; i < space.numLocal; ++i) a[i] = space.kindLocal[i] == kContact ? problem.psi->Scalar(&space.dofPoint[i * space.dim], space.dim, error) : PETSC_NINFINITY;
+  for (PetscInt i = 0; i < space.numLocal; ++i) a[i] = PETSC_NINFINITY;
+  space.ForEachBoundaryDof([&](PetscInt i, const PetscReal *x) {
+    if (space.kindLocal[i] == kContact) a[i] = problem.psi->Scalar(x, space.dim, error);
+  });
   PetscCall(VecRestoreArray(loc, &a));
   PetscCall(DMLocalToGlobal(space.dm, loc, INSERT_VALUES, lower));
   PetscCall(DMRestoreLocalVector(space.dm, &loc));
@@ -370,11 +373,12 @@ PetscErrorCode WriteContactProfile(const Space &space, const Problem &problem, c
   PetscCall(MatMult(sys.A, u, res));
   PetscCall(VecAXPY(res, -1.0, sys.b));
   // DOF coordinates as global vectors, so they can be read at owned indices
+  const std::vector<PetscReal> points = DofPoints(space);
   PetscCall(DMGetLocalVector(space.dm, &loc));
   for (PetscInt d = 0; d < space.dim; ++d) {
     PetscCall(VecDuplicate(u, &coords[d]));
     PetscCall(VecGetArray(loc, &a));
-    for (PetscInt i = 0; i < space.numLocal; ++i) a[i] = space.dofPoint[i * space.dim + d];
+    for (PetscInt i = 0; i < space.numLocal; ++i) a[i] = points[i * space.dim + d];
     PetscCall(VecRestoreArray(loc, &a));
     PetscCall(DMLocalToGlobal(space.dm, loc, INSERT_VALUES, coords[d]));
     PetscCall(VecGetArrayRead(coords[d], &xa[d]));

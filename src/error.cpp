@@ -88,7 +88,7 @@ struct CellFunction {
   {
     // barycentric coordinates of x: lambda_k = grad lambda_k . (x - X_0) for k >= 1
     const PetscInt   dim = space->dim;
-    const PetscReal *X0  = space->X(c);
+    const Space::Coords X0 = space->X(c);
     PetscReal        lambda[4], sum = 0, v = 0;
     for (PetscInt k = 1; k <= dim; ++k) {
       lambda[k] = 0;

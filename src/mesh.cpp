@@ -170,6 +170,21 @@ PetscErrorCode SimplexVertices(DM dm, PetscInt p, PetscInt depth, PetscInt verts
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode CellVertices(DM dm, PetscInt p, PetscInt dim, PetscInt verts[4])
+{
+  const PetscInt *cone;
+  PetscInt        all[4], face[4];
+  PetscFunctionBeginUser;
+  PetscCall(SimplexVertices(dm, p, dim, all));
+  PetscCall(DMPlexGetCone(dm, p, &cone));
+  for (PetscInt k = 0; k <= dim; ++k) {
+    PetscCall(SimplexVertices(dm, cone[k], dim - 1, face));
+    for (PetscInt j = 0; j <= dim; ++j)
+      if (std::find(face, face + dim, all[j]) == face + dim) verts[k] = all[j];
+  }
+  PetscFunctionReturn(0);
+}
+
 // A mesh that folds over itself (an inverted cell: a vertex moved across an opposite face) has cells of
 // positive measure, so the measure check does not see it, yet the solution on it is wrong. In a valid mesh
 // the two cells of every interior face lie on opposite sides of it; the orientation in which the file

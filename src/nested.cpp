@@ -36,14 +36,16 @@ void Barycentric(PetscInt dim, const CellGeometry &g, const PetscReal *X0, const
 template <class F>
 void ForEachFineDof(const Space &coarse, const Space &fine, const std::vector<PetscInt> &parent, F f)
 {
-  PetscReal lambda[4];
+  PetscReal lambda[4], x[3];
   for (PetscInt c = 0; c < fine.NumCells(); ++c) {
-    const PetscInt pc = parent[c];
-    CellGeometry   g;
-    ComputeCellGeometry(coarse.dim, coarse.X(pc), g);
+    const PetscInt            pc = parent[c];
+    const Space::Coords XH = coarse.X(pc);
+    CellGeometry              g;
+    ComputeCellGeometry(coarse.dim, XH, g);
     for (PetscInt i = 0; i < fine.Nb(); ++i) {
       const PetscInt dof = fine.Dofs(c)[i];
-      Barycentric(coarse.dim, g, coarse.X(pc), &fine.dofPoint[dof * fine.dim], lambda);
+      fine.DofPoint(c, i, x);
+      Barycentric(coarse.dim, g, XH, x, lambda);
       f(pc, dof, lambda);
     }
   }
@@ -118,7 +120,7 @@ PetscErrorCode TransferActiveSet(const Space &coarse, Vec uH, Vec lowerH, const 
     bool active = true;
     for (PetscInt j = 0; j < coarse.Nb(); ++j) {
       // P1: vertex j supports the point if lambda_j > 0; CR: face j contains it if lambda_{K(j)} = 0.
-      const bool on = coarse.element == Element::P1 ? lambda[j] > eps : std::fabs(lambda[coarse.K(pc, j)]) < eps;
+      const bool on = coarse.element == Element::P1 ? lambda[j] > eps : std::fabs(lambda[j]) < eps;
       const PetscInt J = coarse.Dofs(pc)[j];
       if (on) active = active && coarse.kindLocal[J] == kContact && PetscRealPart(aU[J] - aL[J]) <= tol;
     }

@@ -73,16 +73,15 @@ static PetscErrorCode DerivedFields(const Space &space, Vec u, DM cellDM, DM ver
     PetscReal centroid[4], mean = 0;
     for (PetscInt k = 0; k < nb; ++k) centroid[k] = 1.0 / nb;
     for (PetscInt i = 0; i < nb; ++i) mean += PetscRealPart(ua[space.Dofs(c)[i]]) * space.BasisValue(c, i, centroid);
-    PetscInt verts[4], coff;
+    PetscInt coff;
     PetscCall(PetscSectionGetOffset(csec, space.cStart + c, &coff));
     cm[coff] = mean;
-    PetscCall(SimplexVertices(space.dm, space.cStart + c, space.dim, verts)); // the cell tables' vertex order
     for (PetscInt k = 0; k < nb; ++k) {
       PetscReal lambda[4] = {0, 0, 0, 0}, val = 0;
       lambda[k]           = 1;
       for (PetscInt i = 0; i < nb; ++i) val += PetscRealPart(ua[space.Dofs(c)[i]]) * space.BasisValue(c, i, lambda);
       PetscInt off;
-      PetscCall(PetscSectionGetOffset(vsec, verts[k], &off));
+      PetscCall(PetscSectionGetOffset(vsec, space.Vertex(c, k), &off));
       vs[off] += val;
       vc[off] += 1;
     }

@@ -64,17 +64,32 @@ bool ComputeCellGeometry(PetscInt dim, const PetscReal *X, CellGeometry &g)
 
 void Space::Point(PetscInt c, const PetscReal *lambda, PetscReal *x) const
 {
-  const PetscReal *Xc = X(c);
+  const Coords Xc = X(c);
   for (PetscInt d = 0; d < dim; ++d) {
     x[d] = 0;
     for (PetscInt k = 0; k <= dim; ++k) x[d] += lambda[k] * Xc[k * dim + d];
   }
 }
 
+void Space::DofPoint(PetscInt c, PetscInt i, PetscReal *x) const
+{
+  PetscReal lambda[4];
+  for (PetscInt k = 0; k <= dim; ++k) lambda[k] = element == Element::P1 ? (k == i) : (k == i ? 0.0 : 1.0 / dim);
+  Point(c, lambda, x);
+}
+
+std::vector<PetscReal> DofPoints(const Space &s)
+{
+  std::vector<PetscReal> x(s.numLocal * s.dim);
+  for (PetscInt c = 0; c < s.NumCells(); ++c)
+    for (PetscInt i = 0; i < s.Nb(); ++i) s.DofPoint(c, i, &x[s.Dofs(c)[i] * s.dim]);
+  return x;
+}
+
 PetscReal Space::FaceMeasure(const BoundaryFace &bf) const
 {
-  const PetscReal *Xc = X(bf.cell);
-  PetscInt         v[3], n = 0;
+  const Coords Xc = X(bf.cell);
+  PetscInt     v[3], n = 0;
   for (PetscInt k = 0; k <= dim; ++k)
     if (k != bf.opposite) v[n++] = k;
   PetscReal e[2][3] = {{0}};
@@ -118,8 +133,8 @@ static PetscErrorCode CreateSection(Space &s, PetscInt vStart, PetscInt vEnd, Pe
   PetscFunctionReturn(0);
 }
 
-// Cell tables: vertex coordinates, DOFs, the vertex opposite each cone face, Cell Sets values.
-static PetscErrorCode BuildCellTables(Space &s)
+// Cell tables: vertices, DOFs and Cell Sets values of each cell, and the vertex coordinates.
+static PetscErrorCode BuildCellTables(Space &s, PetscInt vEnd)
 {
   Vec                coords;
   DM                 cdm;
@@ -129,47 +144,42 @@ static PetscErrorCode BuildCellTables(Space &s)
   std::string        problem;
   PetscFunctionBeginUser;
   const PetscInt nb = s.dim + 1, nc = s.NumCells();
-  PetscInt       verts[4], fverts[4];
   PetscCall(DMGetLocalSection(s.dm, &section));
   PetscCall(DMGetCoordinatesLocal(s.dm, &coords));
   PetscCall(DMGetCoordinateDM(s.dm, &cdm));
   PetscCall(DMGetLocalSection(cdm, &csec));
   PetscCall(DMGetLabel(s.dm, "Cell Sets", &cellSets));
   PetscCall(VecGetArrayRead(coords, &xa));
+  s.vertX.resize((vEnd - s.vStart) * s.dim);
+  for (PetscInt v = s.vStart; v < vEnd; ++v) {
+    PetscInt off;
+    PetscCall(PetscSectionGetOffset(csec, v, &off));
+    for (PetscInt d = 0; d < s.dim; ++d) s.vertX[(v - s.vStart) * s.dim + d] = PetscRealPart(xa[off + d]);
+  }
+  PetscCall(VecRestoreArrayRead(coords, &xa));
   s.cellDof.resize(nc * nb);
-  s.cellOpp.resize(nc * nb);
-  s.cellX.resize(nc * nb * s.dim);
+  s.cellVert.resize(nc * nb);
   s.cellSet.assign(nc, -1);
-  s.dofPoint.assign(s.numLocal * s.dim, 0.0);
   for (PetscInt c = 0; c < nc; ++c) {
     const PetscInt  cell = s.cStart + c;
     const PetscInt *cone;
-    PetscCall(SimplexVertices(s.dm, cell, s.dim, verts));
+    PetscInt        verts[4];
+    PetscCall(CellVertices(s.dm, cell, s.dim, verts));
     PetscCall(DMPlexGetCone(s.dm, cell, &cone));
-    for (PetscInt k = 0; k < nb; ++k) {
-      PetscInt off;
-      PetscCall(PetscSectionGetOffset(csec, verts[k], &off));
-      for (PetscInt d = 0; d < s.dim; ++d) s.cellX[(c * nb + k) * s.dim + d] = PetscRealPart(xa[off + d]);
-      PetscCall(SimplexVertices(s.dm, cone[k], s.dim - 1, fverts));
-      for (PetscInt j = 0; j < nb; ++j)
-        if (std::find(fverts, fverts + s.dim, verts[j]) == fverts + s.dim) s.cellOpp[c * nb + k] = j;
-    }
     for (PetscInt i = 0; i < nb; ++i) {
-      PetscInt off;
-      PetscCall(PetscSectionGetOffset(section, s.element == Element::P1 ? verts[i] : cone[i], &off));
-      s.cellDof[c * nb + i] = off;
+      const PetscInt p = s.element == Element::P1 ? verts[i] : cone[i];
+      PetscInt       off;
+      PetscCall(PetscSectionGetOffset(section, p, &off));
+      // ForEachBoundaryDof finds a P1 DOF's coordinates by this identity
+      PetscCheck(s.element != Element::P1 || off == verts[i] - s.vStart, PETSC_COMM_SELF, PETSC_ERR_PLIB, "P1 DOF %d of vertex %d is not numbered in vertex order", (int)off, (int)verts[i]);
+      s.cellDof[c * nb + i]  = off;
+      s.cellVert[c * nb + i] = verts[i] - s.vStart;
     }
     if (cellSets) PetscCall(DMLabelGetValue(cellSets, cell, &s.cellSet[c]));
     CellGeometry g;
-    if (!ComputeCellGeometry(s.dim, s.X(c), g) && problem.empty()) problem = Format("mesh: cell %d (centroid near (%g, %g)) is degenerate", (int)cell, (double)s.cellX[c * nb * s.dim], (double)s.cellX[c * nb * s.dim + 1]);
-    // DOF points: the vertex (P1) or the face centroid (CR), i.e. where phi_i = 1 in this cell.
-    for (PetscInt i = 0; i < nb; ++i) {
-      PetscReal lambda[4];
-      for (PetscInt k = 0; k < nb; ++k) lambda[k] = s.element == Element::P1 ? (k == i) : (k == s.K(c, i) ? 0.0 : 1.0 / s.dim);
-      s.Point(c, lambda, &s.dofPoint[s.cellDof[c * nb + i] * s.dim]);
-    }
+    const Space::Coords X = s.X(c);
+    if (!ComputeCellGeometry(s.dim, X, g) && problem.empty()) problem = Format("mesh: cell %d (near (%g, %g)) is degenerate", (int)cell, (double)X[0], (double)X[1]);
   }
-  PetscCall(VecRestoreArrayRead(coords, &xa));
   PetscCall(CheckAll(PetscObjectComm((PetscObject)s.dm), problem.empty(), problem));
   PetscFunctionReturn(0);
 }
@@ -228,7 +238,7 @@ static PetscErrorCode CollectBoundary(Space &s, const Problem &problem, PetscInt
           BoundaryFace bf{supp[0] - s.cStart, -1, value, -1, f};
           for (PetscInt k = 0; k <= s.dim; ++k)
             if (cone[k] == f) {
-              bf.opposite = s.cellOpp[bf.cell * s.Nb() + k];
+              bf.opposite = k;
               if (s.element == Element::CR) bf.dof = s.cellDof[bf.cell * s.Nb() + k];
             }
           s.boundary.push_back(bf);
@@ -362,8 +372,9 @@ PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Spa
   PetscCall(DMPlexGetDepthStratum(s.dm, 0, &vStart, &vEnd));
   PetscCall(DMPlexGetHeightStratum(s.dm, 1, &fStart, &fEnd));
   PetscCall(DMPlexGetHeightStratum(s.dm, 0, &s.cStart, &s.cEnd));
+  s.vStart = vStart;
   PetscCall(CreateSection(s, vStart, vEnd, fStart, fEnd));
-  PetscCall(BuildCellTables(s));
+  PetscCall(BuildCellTables(s, vEnd));
   PetscCall(CollectBoundary(s, problem, fStart, fEnd));
   PetscCall(ClassifyDofs(s, problem));
   if (problem.HasContact() && !problem.dirichlet.empty()) PetscCall(CheckObstacleMeetsDirichlet(s, problem));

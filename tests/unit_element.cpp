@@ -224,6 +224,7 @@ static PetscErrorCode TestSpace(unit::Checker &ck, const SpaceCase &sc)
   }
   ck.Check((PetscInt)pointOf.size() == space.numLocal, tag + " one point per local DOF", "%zu points, numLocal %d", pointOf.size(), (int)space.numLocal);
 
+  const std::vector<PetscReal> dofPoint = DofPoints(space);
   double      basisErr = 0, dofPointErr = 0, symErr = 0, rowErr = 0, formulaErr = 0;
   bool        pointsOk = true, vertsOk = true;
   std::string pointsMsg;
@@ -231,13 +232,21 @@ static PetscErrorCode TestSpace(unit::Checker &ck, const SpaceCase &sc)
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
     const PetscInt cell = space.cStart + c;
     PetscCall(unit::PointVertices(space.dm, cell, cellV));
-    // The space's vertex table holds this cell's vertices (in some order).
+    // The space's vertex table holds this cell's vertices, vertex k the one not on cone face k.
+    const PetscInt *tcone;
+    PetscCall(DMPlexGetCone(space.dm, cell, &tcone));
     for (PetscInt k = 0; k < nb; ++k) {
       bool found = false;
       for (const auto &v : cellV) {
         double e = 0;
         for (PetscInt d = 0; d < dim; ++d) e = std::fmax(e, std::fabs(v[d] - space.X(c)[k * dim + d]));
         found = found || e == 0;
+      }
+      PetscCall(unit::PointVertices(space.dm, tcone[k], faceV));
+      for (const auto &v : faceV) {
+        double e = 0;
+        for (PetscInt d = 0; d < dim; ++d) e = std::fmax(e, std::fabs(v[d] - space.X(c)[k * dim + d]));
+        found = found && e > 0;
       }
       vertsOk = vertsOk && found && (PetscInt)cellV.size() == nb;
     }
@@ -282,7 +291,7 @@ static PetscErrorCode TestSpace(unit::Checker &ck, const SpaceCase &sc)
         where[i][d] = 0;
         for (const auto &v : faceV) where[i][d] += v[d] / faceV.size();
       }
-      for (PetscInt d = 0; d < dim; ++d) dofPointErr = std::fmax(dofPointErr, std::fabs(space.dofPoint[dof * dim + d] - where[i][d]));
+      for (PetscInt d = 0; d < dim; ++d) dofPointErr = std::fmax(dofPointErr, std::fabs(dofPoint[dof * dim + d] - where[i][d]));
       if (sc.element == Element::P1) { // face opposite vertex p: the other cell vertices
         std::vector<std::array<double, 3>> opp;
         for (const auto &v : cellV)
@@ -354,7 +363,7 @@ static PetscErrorCode TestSpace(unit::Checker &ck, const SpaceCase &sc)
     nDirichlet += expected == kDirichlet;
     if (space.kindLocal[i] != expected && kindsOk) {
       kindsOk  = false;
-      kindsMsg = Format("DOF %d at (%g, %g, %g): kind %d, expected %d", (int)i, space.dofPoint[i * dim], space.dofPoint[i * dim + 1], dim == 3 ? space.dofPoint[i * dim + 2] : 0.0, (int)space.kindLocal[i], (int)expected);
+      kindsMsg = Format("DOF %d at (%g, %g, %g): kind %d, expected %d", (int)i, dofPoint[i * dim], dofPoint[i * dim + 1], dim == 3 ? dofPoint[i * dim + 2] : 0.0, (int)space.kindLocal[i], (int)expected);
     }
   }
   ck.Check(kindsOk, tag + " DOF kinds match the geometry", "%s", kindsMsg.c_str());

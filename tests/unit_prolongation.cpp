@@ -69,7 +69,8 @@ static PetscErrorCode Interpolate(const Space &s, const std::function<PetscReal(
   PetscFunctionBeginUser;
   PetscCall(DMGetLocalVector(s.dm, &loc));
   PetscCall(VecGetArray(loc, &a));
-  for (PetscInt i = 0; i < s.numLocal; ++i) a[i] = f(&s.dofPoint[i * s.dim]);
+  const std::vector<PetscReal> points = DofPoints(s);
+  for (PetscInt i = 0; i < s.numLocal; ++i) a[i] = f(&points[i * s.dim]);
   PetscCall(VecRestoreArray(loc, &a));
   PetscCall(DMLocalToGlobal(s.dm, loc, INSERT_VALUES, u));
   PetscCall(DMRestoreLocalVector(s.dm, &loc));
@@ -95,12 +96,17 @@ static PetscErrorCode GatherCells(MPI_Comm comm, const Space &coarse, std::vecto
   PetscMPIInt size;
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_size(comm, &size));
-  int              n = (int)coarse.cellX.size();
+  std::vector<PetscReal> mine;
+  for (PetscInt c = 0; c < coarse.NumCells(); ++c) {
+    const Space::Coords X = coarse.X(c);
+    mine.insert(mine.end(), X.x, X.x + coarse.Nb() * coarse.dim);
+  }
+  int              n = (int)mine.size();
   std::vector<int> counts(size), displs(size, 0);
   PetscCallMPI(MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, comm));
   for (int p = 1; p < size; ++p) displs[p] = displs[p - 1] + counts[p - 1];
   all.resize(displs[size - 1] + counts[size - 1]);
-  PetscCallMPI(MPI_Allgatherv(coarse.cellX.data(), n, MPIU_REAL, all.data(), counts.data(), displs.data(), MPIU_REAL, comm));
+  PetscCallMPI(MPI_Allgatherv(mine.data(), n, MPIU_REAL, all.data(), counts.data(), displs.data(), MPIU_REAL, comm));
   PetscFunctionReturn(0);
 }
 
@@ -170,7 +176,9 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
   PetscCall(VecDuplicate(uh, &uRef));
   PetscCall(DMGetLocalVector(coarse.dm, &locH));
   PetscCall(DMGetLocalVector(fine.dm, &loch));
-  const PetscInt dim = fine.dim;
+  const PetscInt               dim          = fine.dim;
+  const std::vector<PetscReal> finePoints   = DofPoints(fine);
+  const std::vector<PetscReal> coarsePoints = DofPoints(coarse);
 
   // 1. A globally affine function: exact for both elements.
   auto affine = [dim](const PetscReal *x) { return 1.0 + 2.0 * x[0] - 3.0 * x[1] + (dim == 3 ? 0.5 * x[2] : 0.0); };
@@ -197,7 +205,7 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
   for (PetscInt i = 0; i < fine.numLocal; ++i) {
     PetscInt        nCells;
     PetscReal       spread;
-    const PetscReal expected = Expected(dim, pc.element, allCells, generic, &fine.dofPoint[i * dim], nCells, spread);
+    const PetscReal expected = Expected(dim, pc.element, allCells, generic, &finePoints[i * dim], nCells, spread);
     jump                     = std::max(jump, spread);
     const PetscReal e        = std::fabs(PetscRealPart(ah[i]) - expected);
     unlocated += nCells == 0;
@@ -243,7 +251,7 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
     PetscScalar *a;
     PetscCall(DMGetLocalVector(coarse.dm, &loc));
     PetscCall(VecGetArray(loc, &a));
-    for (PetscInt i = 0; i < coarse.numLocal; ++i) a[i] = withContact(&coarse.dofPoint[i * dim], coarse.kindLocal[i]);
+    for (PetscInt i = 0; i < coarse.numLocal; ++i) a[i] = withContact(&coarsePoints[i * dim], coarse.kindLocal[i]);
     PetscCall(VecRestoreArray(loc, &a));
     PetscCall(DMLocalToGlobal(coarse.dm, loc, INSERT_VALUES, uH));
     PetscCall(DMRestoreLocalVector(coarse.dm, &loc));
@@ -266,7 +274,7 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
   std::vector<char> forced(fine.numLocal, 0);
   for (PetscInt i = 0; i < fine.numLocal; ++i) {
     if (fine.kindLocal[i] != kContact) continue;
-    const PetscReal *x = &fine.dofPoint[i * dim];
+    const PetscReal *x = &finePoints[i * dim];
     bool             found = false, active = true;
     for (const BoundaryFace &bf : coarse.boundary) {
       if (bf.part != pc.contact) continue;

@@ -42,6 +42,9 @@ PetscErrorCode MeshOptionsFromCommandLine(MPI_Comm comm, MeshOptions &opts);
 // among them. Every table that lists a cell's vertices uses this order. Much cheaper than a transitive
 // closure (the cell tables need d + 2 of these per cell).
 PetscErrorCode SimplexVertices(DM dm, PetscInt p, PetscInt depth, PetscInt verts[4]);
+// The dim + 1 vertices of cell p ordered so that vertex k is the one not on face k of its cone (the order
+// of the cell tables of a discrete space).
+PetscErrorCode CellVertices(DM dm, PetscInt p, PetscInt dim, PetscInt verts[4]);
 // Longest edge of the mesh (max over ranks).
 PetscErrorCode MeshSize(DM dm, PetscReal *hmax);
 // One uniform (regular) refinement, local to each rank. If `parent` is given, parent[c] is the cell of

@@ -3,10 +3,11 @@
 // Gamma_C classified.
 //
 // Both elements are described through barycentric coordinates lambda_0..lambda_d of a cell, so one code
-// path serves triangles and tetrahedra:
-//   P1: phi_i = lambda_i                  (DOF i = vertex i of the cell)
-//   CR: phi_i = 1 - d * lambda_{opp(i)}   (DOF i = face i of the cone, opp(i) = the vertex not on it)
-// i.e. phi_i = a + b * lambda_{k(i)} with (a, b) = (0, 1) or (1, -d).
+// path serves triangles and tetrahedra. The cell tables list a cell's vertices so that vertex k is the one
+// not on face k of its cone, and then
+//   P1: phi_i = lambda_i                (DOF i = vertex i of the cell)
+//   CR: phi_i = 1 - d * lambda_i        (DOF i = face i of the cone, the face opposite vertex i)
+// i.e. phi_i = a + b * lambda_i with (a, b) = (0, 1) or (1, -d).
 #pragma once
 
 #include "signorini/problem.h"
@@ -41,39 +42,74 @@ enum DofKind : char { kFree = 0, kDirichlet = 1, kContact = 2 };
 struct Space {
   DM       dm = nullptr; // mesh clone carrying the local section of this space
   Element  element = Element::CR;
-  PetscInt dim = 2, cStart = 0, cEnd = 0;
+  PetscInt dim = 2, cStart = 0, cEnd = 0, vStart = 0;
   PetscInt numLocal = 0, numOwned = 0, numGlobal = 0, numContactGlobal = 0, numDirichletGlobal = 0;
+  // Per cell only what cannot be looked up cheaply: at 10^7 cells every entry is 40 MB of memory and
+  // of page faults in the set-up.
   std::vector<PetscInt>     cellDof;   // (dim+1) local DOF indices per cell
-  std::vector<PetscInt>     cellOpp;   // (dim+1) per cell: vertex index opposite cone face i
-  std::vector<PetscReal>    cellX;     // (dim+1)*dim vertex coordinates per cell
+  std::vector<PetscInt>     cellVert;  // (dim+1) vertices per cell (as v - vStart), vertex k opposite cone face k
+  std::vector<PetscReal>    vertX;     // dim coordinates per local vertex (v - vStart)
   std::vector<PetscInt>     cellSet;   // "Cell Sets" value per cell, -1 if none
-  std::vector<PetscReal>    dofPoint;  // dim coordinates per local DOF: vertex or face centroid
   std::vector<char>         kindLocal; // DofKind per local DOF (consistent across ranks)
   std::vector<PetscInt>     dirichletOwned, contactOwned; // indices into the owned part of a global Vec
   std::vector<BoundaryFace> boundary;  // faces of all named parts on this rank
 
+  // The vertex coordinates of a cell, (dim+1)*dim values; converts to a pointer for the functions that
+  // take one (keep the object, not the pointer, beyond one expression).
+  struct Coords {
+    PetscReal x[12];
+    operator const PetscReal *() const { return x; }
+  };
+
   PetscInt        NumCells() const { return cEnd - cStart; }
   PetscInt        Nb() const { return dim + 1; }
   const PetscInt *Dofs(PetscInt c) const { return &cellDof[c * (dim + 1)]; }
-  const PetscReal *X(PetscInt c) const { return &cellX[c * (dim + 1) * dim]; }
-  // Index k(i) of the barycentric coordinate basis function i depends on.
-  PetscInt  K(PetscInt c, PetscInt i) const { return element == Element::P1 ? i : cellOpp[c * (dim + 1) + i]; }
-  PetscReal BasisValue(PetscInt c, PetscInt i, const PetscReal *lambda) const
+  PetscInt        Vertex(PetscInt c, PetscInt k) const { return vStart + cellVert[c * (dim + 1) + k]; } // mesh point
+  Coords          X(PetscInt c) const
   {
-    return element == Element::P1 ? lambda[i] : 1.0 - dim * lambda[K(c, i)];
+    Coords X;
+    for (PetscInt k = 0; k <= dim; ++k)
+      for (PetscInt d = 0; d < dim; ++d) X.x[k * dim + d] = vertX[cellVert[c * (dim + 1) + k] * dim + d];
+    return X;
   }
-  void BasisGrad(PetscInt c, PetscInt i, const CellGeometry &g, PetscReal *grad) const
+  PetscReal BasisValue(PetscInt, PetscInt i, const PetscReal *lambda) const
+  {
+    return element == Element::P1 ? lambda[i] : 1.0 - dim * lambda[i];
+  }
+  void BasisGrad(PetscInt, PetscInt i, const CellGeometry &g, PetscReal *grad) const
   {
     const PetscReal b = element == Element::P1 ? 1.0 : -(PetscReal)dim;
-    for (PetscInt d = 0; d < dim; ++d) grad[d] = b * g.gradLambda[K(c, i)][d];
+    for (PetscInt d = 0; d < dim; ++d) grad[d] = b * g.gradLambda[i][d];
   }
   // Physical point of barycentric coordinates lambda in cell c.
   void Point(PetscInt c, const PetscReal *lambda, PetscReal *x) const;
+  // Where basis function i of cell c is 1: vertex i (P1) or the centroid of the face opposite it (CR).
+  void DofPoint(PetscInt c, PetscInt i, PetscReal *x) const;
+  // Calls f(dof, x) once for every local DOF on Gamma_D or Gamma_C, x its point (vertex or face centroid).
+  template <class F>
+  void ForEachBoundaryDof(F f) const
+  {
+    PetscReal x[3];
+    if (element == Element::P1) { // DOF i is vertex vStart + i (checked by SpaceCreate)
+      for (PetscInt i = 0; i < numLocal; ++i)
+        if (kindLocal[i] != kFree) f(i, &vertX[i * dim]);
+      return;
+    }
+    for (const BoundaryFace &bf : boundary) // a CR DOF on a part is a face of it, on the rank of its cell
+      if (kindLocal[bf.dof] != kFree) {
+        DofPoint(bf.cell, bf.opposite, x);
+        f(bf.dof, (const PetscReal *)x);
+      }
+  }
   // Measure of boundary face bf (length in 2D, area in 3D) and its barycentric coordinates in the cell
   // of a point with face-barycentric coordinates mu (dim entries).
   PetscReal FaceMeasure(const BoundaryFace &bf) const;
   void      FaceToCell(const BoundaryFace &bf, const PetscReal *mu, PetscReal *lambda) const;
 };
+
+// The point of every local DOF (dim values each): for output and tests; the solver itself does not keep
+// this table.
+std::vector<PetscReal> DofPoints(const Space &space);
 
 PetscErrorCode ElementFromCommandLine(MPI_Comm comm, Element &e);
 // Builds the section, cell tables and DOF classification. Checks that every named part exists on the mesh
