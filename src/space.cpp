@@ -112,15 +112,10 @@ static PetscErrorCode CreateSection(Space &s, PetscInt vStart, PetscInt vEnd, Pe
   PetscInt     pStart, pEnd;
   PetscFunctionBeginUser;
   PetscCall(PetscSectionCreate(PetscObjectComm((PetscObject)s.dm), &section));
-  PetscCall(PetscSectionSetNumFields(section, 1));
-  PetscCall(PetscSectionSetFieldName(section, 0, "u"));
   PetscCall(DMPlexGetChart(s.dm, &pStart, &pEnd));
   PetscCall(PetscSectionSetChart(section, pStart, pEnd));
   const PetscInt start = s.element == Element::P1 ? vStart : fStart, end = s.element == Element::P1 ? vEnd : fEnd;
-  for (PetscInt p = start; p < end; ++p) {
-    PetscCall(PetscSectionSetDof(section, p, 1));
-    PetscCall(PetscSectionSetFieldDof(section, p, 0, 1));
-  }
+  for (PetscInt p = start; p < end; ++p) PetscCall(PetscSectionSetDof(section, p, 1));
   PetscCall(PetscSectionSetUp(section));
   PetscCall(PetscSectionGetStorageSize(section, &s.numLocal));
   PetscCall(DMSetLocalSection(s.dm, section));
