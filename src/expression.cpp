@@ -49,8 +49,12 @@ bool Expression::Eval(const PetscReal x[], PetscInt dim, PetscReal values[], std
   for (int d = 0; d < 3; ++d) xyz_[d] = d < dim ? x[d] : 0.0;
   int           n = 0;
   const double *v = nullptr;
+  double        scalar;
   try {
-    v = constant_ ? value_.data() : parser_->Eval(n);
+    // a scalar through muparser's single-result entry point, which skips the result-array bookkeeping
+    if (constant_) v = value_.data();
+    else if (components_ == 1) v = &(scalar = parser_->Eval());
+    else v = parser_->Eval(n);
   } catch (mu::Parser::exception_type &err) {
     if (error.empty()) error = Format("option %s: evaluating '%s' failed: %s", option_.c_str(), text_.c_str(), err.GetMsg().c_str());
     return false;

@@ -54,6 +54,25 @@ static void ForEachColumn(const Space &space, const DofCells &dc, PetscInt row, 
   }
 }
 
+// Sends records (row, ncols, cols...), one list per destination rank; returns those this rank received.
+static PetscErrorCode ExchangeRecords(MPI_Comm comm, const std::vector<std::vector<PetscInt>> &send, std::vector<PetscInt> &received)
+{
+  const PetscMPIInt size = (PetscMPIInt)send.size();
+  PetscFunctionBeginUser;
+  std::vector<PetscMPIInt> scount(size), rcount(size), sdispl(size + 1, 0), rdispl(size + 1, 0);
+  for (PetscMPIInt p = 0; p < size; ++p) {
+    PetscCall(PetscMPIIntCast((PetscInt)send[p].size(), &scount[p]));
+    sdispl[p + 1] = sdispl[p] + scount[p];
+  }
+  PetscCallMPI(MPI_Alltoall(scount.data(), 1, MPI_INT, rcount.data(), 1, MPI_INT, comm));
+  for (PetscMPIInt p = 0; p < size; ++p) rdispl[p + 1] = rdispl[p] + rcount[p];
+  std::vector<PetscInt> flat(sdispl[size]);
+  for (PetscMPIInt p = 0; p < size; ++p) std::copy(send[p].begin(), send[p].end(), flat.begin() + sdispl[p]);
+  received.resize(rdispl[size]);
+  PetscCallMPI(MPI_Alltoallv(flat.data(), scount.data(), sdispl.data(), MPIU_INT, received.data(), rcount.data(), rdispl.data(), MPIU_INT, comm));
+  PetscFunctionReturn(0);
+}
+
 // Sends, for every row this rank does not own, the global columns its cells give to that row to the
 // owner, as records (row, ncols, cols...); returns the records received for this rank's own rows.
 static PetscErrorCode ExchangeGhostRows(MPI_Comm comm, const Space &space, const DofCells &dc, const std::vector<PetscInt> &global, const std::vector<PetscInt> &ranges, std::vector<PetscInt> &mark, std::vector<PetscInt> &received)
@@ -74,17 +93,45 @@ static PetscErrorCode ExchangeGhostRows(MPI_Comm comm, const Space &space, const
     ForEachColumn(space, dc, r, mark, [&](PetscInt d) { buf.push_back(global[d]); });
     buf[head] = (PetscInt)(buf.size() - head - 1);
   }
-  std::vector<PetscMPIInt> scount(size), rcount(size), sdispl(size + 1, 0), rdispl(size + 1, 0);
-  for (PetscMPIInt p = 0; p < size; ++p) {
-    PetscCall(PetscMPIIntCast((PetscInt)send[p].size(), &scount[p]));
-    sdispl[p + 1] = sdispl[p] + scount[p];
+  PetscCall(ExchangeRecords(comm, send, received));
+  PetscFunctionReturn(0);
+}
+
+// Crouzeix-Raviart: a face lies in at most two cells, which share no other face, so the columns of a row
+// are the row itself and the other faces of its cells, all distinct: count(row) = 1 + d * (its cells,
+// on all ranks), read off the cell table in one pass, without the cells-of-each-DOF table and the
+// de-duplication the general path needs. A face this rank does not own lies in one of its cells (the
+// other one is on the owner), whose faces go to the owner.
+static PetscErrorCode ComputeRowCountsCR(MPI_Comm comm, const Space &space, const std::vector<PetscInt> &global, const std::vector<PetscInt> &ranges, PetscMPIInt rank, RowCounts &counts)
+{
+  const PetscInt rstart = ranges[rank], rend = ranges[rank + 1], nb = space.Nb();
+  const auto     owned  = [&](PetscInt g) { return g >= rstart && g < rend; };
+  PetscMPIInt    size;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  counts.diag.assign(space.numOwned, 1); // the row itself
+  counts.offdiag.assign(space.numOwned, 0);
+  std::vector<std::vector<PetscInt>> send(size);
+  for (PetscInt c = 0; c < space.NumCells(); ++c) {
+    const PetscInt *dofs = space.Dofs(c);
+    for (PetscInt i = 0; i < nb; ++i) {
+      const PetscInt g = global[dofs[i]];
+      if (!owned(g)) {
+        const PetscMPIInt owner = (PetscMPIInt)(std::upper_bound(ranges.begin(), ranges.end(), g) - ranges.begin() - 1);
+        send[owner].push_back(g);
+        send[owner].push_back(nb - 1);
+        for (PetscInt j = 0; j < nb; ++j)
+          if (j != i) send[owner].push_back(global[dofs[j]]);
+        continue;
+      }
+      for (PetscInt j = 0; j < nb; ++j)
+        if (j != i) ++(owned(global[dofs[j]]) ? counts.diag[g - rstart] : counts.offdiag[g - rstart]);
+    }
   }
-  PetscCallMPI(MPI_Alltoall(scount.data(), 1, MPI_INT, rcount.data(), 1, MPI_INT, comm));
-  for (PetscMPIInt p = 0; p < size; ++p) rdispl[p + 1] = rdispl[p] + rcount[p];
-  std::vector<PetscInt> flat(sdispl[size]);
-  for (PetscMPIInt p = 0; p < size; ++p) std::copy(send[p].begin(), send[p].end(), flat.begin() + sdispl[p]);
-  received.resize(rdispl[size]);
-  PetscCallMPI(MPI_Alltoallv(flat.data(), scount.data(), sdispl.data(), MPIU_INT, received.data(), rcount.data(), rdispl.data(), MPIU_INT, comm));
+  std::vector<PetscInt> received;
+  PetscCall(ExchangeRecords(comm, send, received));
+  for (size_t k = 0; k < received.size(); k += 2 + received[k + 1])
+    for (PetscInt j = 0; j < received[k + 1]; ++j) ++(owned(received[k + 2 + j]) ? counts.diag[received[k] - rstart] : counts.offdiag[received[k] - rstart]);
   PetscFunctionReturn(0);
 }
 
@@ -100,6 +147,10 @@ PetscErrorCode ComputeRowCounts(const Space &space, RowCounts &counts)
   for (PetscMPIInt p = 0; p < size; ++p) ranges[p + 1] += ranges[p];
   const PetscInt rstart = ranges[rank], rend = ranges[rank + 1];
   PetscCall(GlobalIndices(space, global));
+  if (space.element == Element::CR) {
+    PetscCall(ComputeRowCountsCR(comm, space, global, ranges, rank, counts));
+    PetscFunctionReturn(0);
+  }
   const DofCells        dc = BuildDofCells(space);
   std::vector<PetscInt> mark(space.numLocal, -1);
   PetscCall(ExchangeGhostRows(comm, space, dc, global, ranges, mark, received));

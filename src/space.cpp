@@ -47,7 +47,7 @@ bool ComputeCellGeometry(PetscInt dim, const PetscReal *X, CellGeometry &g)
     for (PetscInt r = 0; r < dim; ++r) len2 += J[r][k] * J[r][k];
     h = std::max(h, std::sqrt(len2));
   }
-  if (!std::isfinite(det) || !(std::fabs(det) > 1e-12 * std::pow(h, (PetscReal)dim))) return false;
+  if (!std::isfinite(det) || !(std::fabs(det) > 1e-12 * (dim == 2 ? h * h : h * h * h))) return false;
   g.volume = std::fabs(det) / (dim == 2 ? 2.0 : 6.0);
   for (PetscInt d = 0; d < dim; ++d) {
     g.gradLambda[0][d] = 0;
