@@ -223,25 +223,15 @@ PetscErrorCode ReuseView(PC pc, PetscViewer viewer)
   }
   PetscFunctionReturn(0);
 }
-} // namespace
 
-namespace {
 // The operations of A that SNES and the reduced-space solver use, and its blocks in hypre's format.
-PetscErrorCode BlockMult(Mat J, Vec x, Vec y)
+template <PetscErrorCode (*Op)(Mat, Vec, Vec)>
+PetscErrorCode ForwardToA(Mat J, Vec x, Vec y)
 {
   Mat A;
   PetscFunctionBeginUser;
   PetscCall(MatShellGetContext(J, &A));
-  PetscCall(MatMult(A, x, y));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode BlockMultTranspose(Mat J, Vec x, Vec y)
-{
-  Mat A;
-  PetscFunctionBeginUser;
-  PetscCall(MatShellGetContext(J, &A));
-  PetscCall(MatMultTranspose(A, x, y));
+  PetscCall(Op(A, x, y));
   PetscFunctionReturn(0);
 }
 
@@ -294,8 +284,8 @@ PetscErrorCode AmgReuseJacobian(SNES snes, Mat A, Mat *J)
   PetscCall(MatGetLocalSize(A, &m, &n));
   PetscCall(MatGetSize(A, &M, &N));
   PetscCall(MatCreateShell(PetscObjectComm((PetscObject)A), m, n, M, N, A, J));
-  PetscCall(MatShellSetOperation(*J, MATOP_MULT, (void (*)(void))BlockMult));
-  PetscCall(MatShellSetOperation(*J, MATOP_MULT_TRANSPOSE, (void (*)(void))BlockMultTranspose));
+  PetscCall(MatShellSetOperation(*J, MATOP_MULT, (void (*)(void))ForwardToA<MatMult>));
+  PetscCall(MatShellSetOperation(*J, MATOP_MULT_TRANSPOSE, (void (*)(void))ForwardToA<MatMultTranspose>));
   PetscCall(MatShellSetOperation(*J, MATOP_GET_DIAGONAL, (void (*)(void))BlockGetDiagonal));
   PetscCall(MatShellSetOperation(*J, MATOP_CREATE_SUBMATRIX, (void (*)(void))BlockCreateSubMatrix));
   PetscFunctionReturn(0);

@@ -38,9 +38,9 @@ void ForEachFineDof(const Space &coarse, const Space &fine, const std::vector<Pe
 {
   PetscReal lambda[4], x[3];
   for (PetscInt c = 0; c < fine.NumCells(); ++c) {
-    const PetscInt            pc = parent[c];
+    const PetscInt      pc = parent[c];
     const Space::Coords XH = coarse.X(pc);
-    CellGeometry              g;
+    CellGeometry        g;
     ComputeCellGeometry(coarse.dim, XH, g);
     for (PetscInt i = 0; i < fine.Nb(); ++i) {
       const PetscInt dof = fine.Dofs(c)[i];

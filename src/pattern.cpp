@@ -54,6 +54,12 @@ static void ForEachColumn(const Space &space, const DofCells &dc, PetscInt row, 
   }
 }
 
+// The rank owning global row g, given the ownership ranges (ranges[p] .. ranges[p + 1] on rank p).
+static PetscMPIInt OwnerOf(const std::vector<PetscInt> &ranges, PetscInt g)
+{
+  return (PetscMPIInt)(std::upper_bound(ranges.begin(), ranges.end(), g) - ranges.begin() - 1);
+}
+
 // Sends records (row, ncols, cols...), one list per destination rank; returns those this rank received.
 static PetscErrorCode ExchangeRecords(MPI_Comm comm, const std::vector<std::vector<PetscInt>> &send, std::vector<PetscInt> &received)
 {
@@ -85,7 +91,7 @@ static PetscErrorCode ExchangeGhostRows(MPI_Comm comm, const Space &space, const
   for (PetscInt r = 0; r < space.numLocal; ++r) {
     const PetscInt g = global[r];
     if (g >= ranges[rank] && g < ranges[rank + 1]) continue;
-    const PetscMPIInt owner = (PetscMPIInt)(std::upper_bound(ranges.begin(), ranges.end(), g) - ranges.begin() - 1);
+    const PetscMPIInt owner = OwnerOf(ranges, g);
     std::vector<PetscInt> &buf = send[owner];
     buf.push_back(g);
     const size_t head = buf.size();
@@ -117,7 +123,7 @@ static PetscErrorCode ComputeRowCountsCR(MPI_Comm comm, const Space &space, cons
     for (PetscInt i = 0; i < nb; ++i) {
       const PetscInt g = global[dofs[i]];
       if (!owned(g)) {
-        const PetscMPIInt owner = (PetscMPIInt)(std::upper_bound(ranges.begin(), ranges.end(), g) - ranges.begin() - 1);
+        const PetscMPIInt owner = OwnerOf(ranges, g);
         send[owner].push_back(g);
         send[owner].push_back(nb - 1);
         for (PetscInt j = 0; j < nb; ++j)

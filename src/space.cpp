@@ -287,8 +287,9 @@ static PetscErrorCode ClassifyDofs(Space &s, const Problem &problem)
   PetscCall(VecRestoreArrayRead(lflag, &l));
   PetscCall(VecGetArrayRead(gflag, &g));
   for (PetscInt i = 0; i < s.numOwned; ++i) {
-    if (kind(g[i]) == kDirichlet) s.dirichletOwned.push_back(i);
-    else if (kind(g[i]) == kContact) s.contactOwned.push_back(i);
+    const char k = kind(g[i]);
+    if (k == kDirichlet) s.dirichletOwned.push_back(i);
+    else if (k == kContact) s.contactOwned.push_back(i);
   }
   PetscCall(VecRestoreArrayRead(gflag, &g));
   PetscCall(VecDestroy(&lflag));

@@ -98,7 +98,7 @@ struct Space {
     for (const BoundaryFace &bf : boundary) // a CR DOF on a part is a face of it, on the rank of its cell
       if (kindLocal[bf.dof] != kFree) {
         DofPoint(bf.cell, bf.opposite, x);
-        f(bf.dof, (const PetscReal *)x);
+        f(bf.dof, x);
       }
   }
   // Measure of boundary face bf (length in 2D, area in 3D) and its barycentric coordinates in the cell
