@@ -74,9 +74,13 @@ PetscInt MatchSets(const PetscInt *cur, PetscInt n, const std::vector<PetscInt> 
   return (n - common) + (m - common);
 }
 
+PetscErrorCode BlockToHypre(Mat B, Mat *H);
+
 PetscErrorCode BuildAmg(PC pc, Reuse &r, Mat P, const PetscInt *cur, PetscInt n)
 {
   const char *prefix;
+  PetscBool   lazy;
+  Mat         H = P;
   PetscFunctionBeginUser;
   PetscCall(PCDestroy(&r.amg));
   PetscCall(VecDestroy(&r.rRef));
@@ -87,8 +91,12 @@ PetscErrorCode BuildAmg(PC pc, Reuse &r, Mat P, const PetscInt *cur, PetscInt n)
   PetscCall(PCSetType(r.amg, r.innerType.c_str()));
   if (r.innerType == PCHYPRE) PetscCall(PCHYPRESetType(r.amg, "boomeramg"));
   PetscCall(PCSetFromOptions(r.amg));
-  PetscCall(PCSetOperators(r.amg, P, P));
+  // A block of AmgReuseJacobian holds no entries: only a new set-up copies it, into hypre's format.
+  PetscCall(PetscObjectTypeCompare((PetscObject)P, MATSHELL, &lazy));
+  if (lazy) PetscCall(BlockToHypre(P, &H));
+  PetscCall(PCSetOperators(r.amg, H, H));
   PetscCall(PCSetUp(r.amg));
+  if (lazy) PetscCall(MatDestroy(&H)); // the PC keeps its reference
   r.ref.assign(cur, cur + n);
   r.map.resize(n);
   for (PetscInt k = 0; k < n; ++k) r.map[k] = k;
@@ -224,7 +232,7 @@ PetscErrorCode ReuseView(PC pc, PetscViewer viewer)
   PetscFunctionReturn(0);
 }
 
-// The operations of A that SNES and the reduced-space solver use, and its blocks in hypre's format.
+// The operations of A that SNES and the reduced-space solver use.
 template <PetscErrorCode (*Op)(Mat, Vec, Vec)>
 PetscErrorCode ForwardToA(Mat J, Vec x, Vec y)
 {
@@ -235,7 +243,7 @@ PetscErrorCode ForwardToA(Mat J, Vec x, Vec y)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode BlockGetDiagonal(Mat J, Vec d)
+PetscErrorCode JacobianGetDiagonal(Mat J, Vec d)
 {
   Mat A;
   PetscFunctionBeginUser;
@@ -244,15 +252,122 @@ PetscErrorCode BlockGetDiagonal(Mat J, Vec d)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode BlockCreateSubMatrix(Mat J, IS rows, IS cols, MatReuse reuse, Mat *B)
+// An inactive-set block A_II that stores no entries: it acts through A on vectors that are zero outside
+// I. Every Newton step gets a new block, but only a step that sets BoomerAMG up anew needs its entries
+// (BlockToHypre); a step that re-uses the set-up would otherwise extract and convert a block the size of
+// A only to multiply by it.
+struct Block {
+  Mat      A    = nullptr; // the whole operator (a reference)
+  IS       rows = nullptr; // I: owned global rows, ascending (a reference)
+  PetscInt rstart = 0;
+  Vec      full = nullptr, fullOut = nullptr; // work vectors of A's size, zero outside I; made when first needed
+};
+
+PetscErrorCode BlockContext(Mat B, Block **b)
 {
-  Mat A, aij;
+  PetscFunctionBeginUser;
+  PetscCall(MatShellGetContext(B, b));
+  if (!(*b)->full) {
+    PetscCall(MatCreateVecs((*b)->A, &(*b)->full, &(*b)->fullOut));
+    PetscCall(VecSet((*b)->full, 0));
+  }
+  PetscFunctionReturn(0);
+}
+
+// y = x_I scattered into the rows of I (to == true) or gathered from them. I holds owned rows only.
+PetscErrorCode MoveEntries(const Block &b, Vec from, Vec to, bool intoFull)
+{
+  const PetscInt    *idx;
+  const PetscScalar *f;
+  PetscScalar       *t;
+  PetscInt           n;
+  PetscFunctionBeginUser;
+  PetscCall(ISGetLocalSize(b.rows, &n));
+  PetscCall(ISGetIndices(b.rows, &idx));
+  PetscCall(VecGetArrayRead(from, &f));
+  PetscCall(VecGetArray(to, &t));
+  if (intoFull)
+    for (PetscInt k = 0; k < n; ++k) t[idx[k] - b.rstart] = f[k];
+  else
+    for (PetscInt k = 0; k < n; ++k) t[k] = f[idx[k] - b.rstart];
+  PetscCall(VecRestoreArray(to, &t));
+  PetscCall(VecRestoreArrayRead(from, &f));
+  PetscCall(ISRestoreIndices(b.rows, &idx));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode BlockMult(Mat B, Vec x, Vec y)
+{
+  Block *b;
+  PetscFunctionBeginUser;
+  PetscCall(BlockContext(B, &b));
+  PetscCall(MoveEntries(*b, x, b->full, true));
+  PetscCall(MatMult(b->A, b->full, b->fullOut));
+  PetscCall(MoveEntries(*b, b->fullOut, y, false));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode BlockGetDiagonal(Mat B, Vec d)
+{
+  Block *b;
+  PetscFunctionBeginUser;
+  PetscCall(BlockContext(B, &b));
+  PetscCall(MatGetDiagonal(b->A, b->fullOut));
+  PetscCall(MoveEntries(*b, b->fullOut, d, false));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode BlockDestroy(Mat B)
+{
+  Block *b;
+  PetscFunctionBeginUser;
+  PetscCall(MatShellGetContext(B, &b));
+  PetscCall(VecDestroy(&b->full));
+  PetscCall(VecDestroy(&b->fullOut));
+  PetscCall(ISDestroy(&b->rows));
+  PetscCall(MatDestroy(&b->A));
+  delete b;
+  PetscFunctionReturn(0);
+}
+
+// The block's entries in hypre's format, for a BoomerAMG set-up (the AIJ copy lives only until converted).
+PetscErrorCode BlockToHypre(Mat B, Mat *H)
+{
+  Block *b;
+  Mat    aij;
+  PetscFunctionBeginUser;
+  PetscCall(MatShellGetContext(B, &b));
+  PetscCall(MatCreateSubMatrix(b->A, b->rows, b->rows, MAT_INITIAL_MATRIX, &aij));
+  PetscCall(MatConvert(aij, MATHYPRE, MAT_INITIAL_MATRIX, H));
+  PetscCall(MatDestroy(&aij));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode JacobianCreateSubMatrix(Mat J, IS rows, IS cols, MatReuse reuse, Mat *B)
+{
+  Mat       A;
+  PetscBool same;
+  PetscInt  n, N;
+  MPI_Comm  comm = PetscObjectComm((PetscObject)J);
   PetscFunctionBeginUser;
   PetscCall(MatShellGetContext(J, &A));
-  PetscCheck(reuse == MAT_INITIAL_MATRIX, PetscObjectComm((PetscObject)J), PETSC_ERR_SUP, "only new blocks of the contact Jacobian");
-  PetscCall(MatCreateSubMatrix(A, rows, cols, MAT_INITIAL_MATRIX, &aij));
-  PetscCall(MatConvert(aij, MATHYPRE, MAT_INITIAL_MATRIX, B));
-  PetscCall(MatDestroy(&aij));
+  PetscCheck(reuse == MAT_INITIAL_MATRIX, comm, PETSC_ERR_SUP, "only new blocks of the contact Jacobian");
+  PetscCall(ISEqual(rows, cols, &same));
+  PetscCheck(same, comm, PETSC_ERR_SUP, "only principal blocks of the contact Jacobian");
+  auto *b = new Block;
+  b->A    = A;
+  PetscCall(PetscObjectReference((PetscObject)A));
+  PetscCall(PetscObjectReference((PetscObject)rows));
+  b->rows = rows;
+  PetscCall(MatGetOwnershipRange(A, &b->rstart, NULL));
+  PetscCall(ISGetLocalSize(rows, &n));
+  PetscCall(ISGetSize(rows, &N));
+  PetscCall(MatCreateShell(comm, n, n, N, N, b, B));
+  PetscCall(MatShellSetOperation(*B, MATOP_MULT, (void (*)(void))BlockMult));
+  PetscCall(MatShellSetOperation(*B, MATOP_MULT_TRANSPOSE, (void (*)(void))BlockMult)); // A is symmetric
+  PetscCall(MatShellSetOperation(*B, MATOP_GET_DIAGONAL, (void (*)(void))BlockGetDiagonal));
+  PetscCall(MatShellSetOperation(*B, MATOP_DESTROY, (void (*)(void))BlockDestroy));
+  PetscCall(MatSetOption(*B, MAT_SYMMETRIC, PETSC_TRUE));
   PetscFunctionReturn(0);
 }
 } // namespace
@@ -286,8 +401,8 @@ PetscErrorCode AmgReuseJacobian(SNES snes, Mat A, Mat *J)
   PetscCall(MatCreateShell(PetscObjectComm((PetscObject)A), m, n, M, N, A, J));
   PetscCall(MatShellSetOperation(*J, MATOP_MULT, (void (*)(void))ForwardToA<MatMult>));
   PetscCall(MatShellSetOperation(*J, MATOP_MULT_TRANSPOSE, (void (*)(void))ForwardToA<MatMultTranspose>));
-  PetscCall(MatShellSetOperation(*J, MATOP_GET_DIAGONAL, (void (*)(void))BlockGetDiagonal));
-  PetscCall(MatShellSetOperation(*J, MATOP_CREATE_SUBMATRIX, (void (*)(void))BlockCreateSubMatrix));
+  PetscCall(MatShellSetOperation(*J, MATOP_GET_DIAGONAL, (void (*)(void))JacobianGetDiagonal));
+  PetscCall(MatShellSetOperation(*J, MATOP_CREATE_SUBMATRIX, (void (*)(void))JacobianCreateSubMatrix));
   PetscFunctionReturn(0);
 }
 

@@ -56,12 +56,12 @@ struct AmgReuseStats {
 // it). The SNES must be of type SNESVINEWTONRSLS. `stats` must outlive the SNES.
 PetscErrorCode AmgReuseInstall(SNES snes, const AmgReuseOptions &o, AmgReuseStats *stats);
 
-// The reduced-space solver extracts each inactive-set block A_II as an AIJ matrix, and BoomerAMG then
-// copies it into hypre's format: two copies of the largest object of the solve, where hypre's alone
-// would do (hypre multiplies by it as well). With the shell installed and BoomerAMG inside it, this
-// returns in *J a matrix that acts as A and hands out its blocks directly in hypre's format (the AIJ
-// block is freed as soon as it is copied), for SNESSetJacobian; otherwise *J = A with a new reference.
-// Either way the caller destroys *J.
+// The reduced-space solver asks for every Newton step's inactive-set block A_II, as an AIJ copy, which
+// BoomerAMG would then copy once more into hypre's format; yet a step that re-uses the BoomerAMG set-up
+// only multiplies by the block. With the shell installed and BoomerAMG inside it, this returns in *J a
+// matrix that acts as A and hands out blocks that store no entries: they multiply through A (on vectors
+// zero outside I), and only a new set-up copies one, straight into hypre's format (the AIJ copy lives
+// until it is converted). Otherwise *J = A with a new reference. Either way the caller destroys *J.
 PetscErrorCode AmgReuseJacobian(SNES snes, Mat A, Mat *J);
 
 } // namespace signorini
