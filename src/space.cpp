@@ -109,12 +109,12 @@ void Space::FaceToCell(const BoundaryFace &bf, const PetscReal *mu, PetscReal *l
 static PetscErrorCode CreateSection(Space &s, PetscInt vStart, PetscInt vEnd, PetscInt fStart, PetscInt fEnd)
 {
   PetscSection section;
-  PetscInt     pStart, pEnd;
   PetscFunctionBeginUser;
   PetscCall(PetscSectionCreate(PetscObjectComm((PetscObject)s.dm), &section));
-  PetscCall(DMPlexGetChart(s.dm, &pStart, &pEnd));
-  PetscCall(PetscSectionSetChart(section, pStart, pEnd));
+  // The chart covers the points that carry DOFs only, not the whole mesh: the local and the global
+  // section keep two integers per point of their chart (2D P1: six mesh points per vertex).
   const PetscInt start = s.element == Element::P1 ? vStart : fStart, end = s.element == Element::P1 ? vEnd : fEnd;
+  PetscCall(PetscSectionSetChart(section, start, end));
   for (PetscInt p = start; p < end; ++p) PetscCall(PetscSectionSetDof(section, p, 1));
   PetscCall(PetscSectionSetUp(section));
   PetscCall(PetscSectionGetStorageSize(section, &s.numLocal));
