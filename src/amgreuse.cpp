@@ -330,6 +330,15 @@ PetscErrorCode BlockDestroy(Mat B)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode BlockView(Mat, PetscViewer viewer)
+{
+  PetscBool ascii;
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompare((PetscObject)viewer, PETSCVIEWERASCII, &ascii));
+  if (ascii) PetscCall(PetscViewerASCIIPrintf(viewer, "inactive-set block of the stiffness matrix: stores no entries, multiplies through A; copied into hypre's format only for a new BoomerAMG set-up\n"));
+  PetscFunctionReturn(0);
+}
+
 // The block's entries in hypre's format, for a BoomerAMG set-up (the AIJ copy lives only until converted).
 PetscErrorCode BlockToHypre(Mat B, Mat *H)
 {
@@ -368,6 +377,7 @@ PetscErrorCode JacobianCreateSubMatrix(Mat J, IS rows, IS cols, MatReuse reuse, 
   PetscCall(MatShellSetOperation(*B, MATOP_MULT_TRANSPOSE, (void (*)(void))BlockMult)); // A is symmetric
   PetscCall(MatShellSetOperation(*B, MATOP_GET_DIAGONAL, (void (*)(void))BlockGetDiagonal));
   PetscCall(MatShellSetOperation(*B, MATOP_DESTROY, (void (*)(void))BlockDestroy));
+  PetscCall(MatShellSetOperation(*B, MATOP_VIEW, (void (*)(void))BlockView));
   PetscCall(MatSetOption(*B, MAT_SYMMETRIC, PETSC_TRUE));
   PetscFunctionReturn(0);
 }
