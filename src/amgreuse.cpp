@@ -274,7 +274,8 @@ PetscErrorCode BlockContext(Mat B, Block **b)
   PetscFunctionReturn(0);
 }
 
-// y = x_I scattered into the rows of I (to == true) or gathered from them. I holds owned rows only.
+// Copies the entries of a block-sized vector into the rows I of an A-sized one (intoFull), or gathers
+// them back. I holds owned rows only, so no communication is needed.
 PetscErrorCode MoveEntries(const Block &b, Vec from, Vec to, bool intoFull)
 {
   const PetscInt    *idx;
