@@ -10,11 +10,15 @@ not change. P defaults to the cores of this machine; on a cluster, run the scrip
 give --max-ranks (or --ranks) and --mpiexec (e.g. "srun", or "mpirun --bind-to core"); the script only builds
 command lines. Efficiency: strong T(1) / (p T(p)), weak T(1) / T(p), from the solve stage, from the
 whole run (set-up + solve), and, as the reference the machine allows, from one CG + BoomerAMG solve of the
-same operator in the same run (-compare_linear)."""
+same operator in the same run (-compare_linear). Right before each run, signorini-stream measures the
+memory bandwidth BW (STREAM triad) of its rank count with the same mpiexec; BW(p) / (p BW(1)) is printed as
+the ceiling of the efficiency of a solve limited by memory bandwidth, as CG + BoomerAMG is (--no-stream
+skips it)."""
 import argparse
 import csv
 import json
 import os
+import re
 import shlex
 import subprocess
 import sys
@@ -22,19 +26,49 @@ import sys
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 EXE = os.path.join(ROOT, "build", "signorini")
+STREAM_EXE = os.path.join(ROOT, "build", "signorini-stream")
 sys.path.insert(0, HERE)
 from bench import SETUP, mesh_args, save_png, warm_memory  # noqa: E402
 
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
 
 
-def launch(args, ranks, options, tag):
-    """Runs signorini on `ranks` ranks; returns its summary dict (None on failure)."""
-    summary, log = os.path.join(args.out, tag + ".json"), os.path.join(args.out, tag + ".log")
+def mpiexec(args, ranks):
     cmd = shlex.split(args.mpiexec) + ["-n", str(ranks)] + shlex.split(args.mpiexec_args)
     if ranks > (os.cpu_count() or 1) and os.path.basename(shlex.split(args.mpiexec)[0]) in ("mpirun", "mpiexec"):
         cmd.append("--oversubscribe")  # Open MPI refuses more ranks than cores otherwise
-    cmd += [EXE] + options + ["-compare_linear", "-summary", summary, "-log_view", ":" + log]
+    return cmd
+
+
+def bandwidth(args, ranks):
+    """STREAM triad bandwidth of `ranks` ranks together in GB/s (None on failure)."""
+    cmd = mpiexec(args, ranks) + [STREAM_EXE]
+    p = subprocess.run(cmd, capture_output=True, text=True, env=ENV)
+    m = re.search(r"triad bandwidth: ([0-9.]+) GB/s", p.stdout)
+    if p.returncode != 0 or not m:
+        sys.stderr.write(" ".join(cmd) + "\n" + p.stdout + p.stderr)
+        return None
+    return float(m.group(1))
+
+
+def efficiencies(rows, strong):
+    """Efficiency against the first run that worked (base b): strong T(b) b / (T(p) p), weak T(b) / T(p); and
+    the ceiling a solve limited by memory bandwidth can reach, (BW(p) / p) / (BW(b) / b), the same for both
+    kinds (in both, each rank's share of the work is done at its share of the bandwidth)."""
+    base = next((r for r in rows if r["status"] == "ok"), None)
+    for r in rows:
+        if base and r["status"] == "ok":
+            for k in ["solve", "total", "linear"]:
+                scale = base["ranks"] / r["ranks"] if strong else 1.0
+                r["eff_" + k] = base[k + "_s"] * scale / r[k + "_s"]
+            if r.get("bw_gbs") and base.get("bw_gbs"):
+                r["eff_ceiling"] = (r["bw_gbs"] / r["ranks"]) / (base["bw_gbs"] / base["ranks"])
+
+
+def launch(args, ranks, options, tag):
+    """Runs signorini on `ranks` ranks; returns its summary dict (None on failure)."""
+    summary, log = os.path.join(args.out, tag + ".json"), os.path.join(args.out, tag + ".log")
+    cmd = mpiexec(args, ranks) + [EXE] + options + ["-compare_linear", "-summary", summary, "-log_view", ":" + log]
     p = subprocess.run(cmd, capture_output=True, text=True, env=ENV)
     if p.returncode != 0 or not os.path.exists(summary):
         sys.stderr.write(" ".join(cmd) + "\n" + p.stdout + p.stderr)
@@ -57,13 +91,10 @@ def strong(args, extra):
     rows = []
     for p in args.ranks:
         opts = scene_options(args.dim, args.element) + mesh_args(args.dim, args.strong_n) + extra
+        bw = None if args.no_stream else bandwidth(args, p)  # measured next to the run: a shared machine's bandwidth drifts
         s = launch(args, p, opts, "strong-%dd-%s-N%d-np%d" % (args.dim, args.element, args.strong_n, p))
-        rows.append(row("strong", p, s))
-    base = next((r for r in rows if r["status"] == "ok"), None)
-    for r in rows:
-        if base and r["status"] == "ok":
-            for k in ["solve", "total", "linear"]:
-                r["eff_" + k] = base[k + "_s"] * base["ranks"] / (r[k + "_s"] * r["ranks"])
+        rows.append(row("strong", p, s, bw))
+    efficiencies(rows, strong=True)
     return rows
 
 
@@ -75,41 +106,40 @@ def weak(args, extra):
         faces = [str(base * p)] + [str(base)] * (args.dim - 1)
         upper = [str(p)] + ["1"] * (args.dim - 1)
         opts = scene_options(args.dim, args.element) + ["-box_faces", ",".join(faces), "-refine", mesh[3], "-box_upper", ",".join(upper)] + extra
+        bw = None if args.no_stream else bandwidth(args, p)
         s = launch(args, p, opts, "weak-%dd-%s-N%d-np%d" % (args.dim, args.element, args.weak_n, p))
-        rows.append(row("weak", p, s))
-    base = next((r for r in rows if r["status"] == "ok"), None)
-    for r in rows:
-        if base and r["status"] == "ok":
-            for k in ["solve", "total", "linear"]:
-                r["eff_" + k] = base[k + "_s"] / r[k + "_s"]
+        rows.append(row("weak", p, s, bw))
+    efficiencies(rows, strong=False)
     return rows
 
 
-def row(kind, ranks, s):
+def row(kind, ranks, s, bw):
     if s is None:
-        return {"kind": kind, "ranks": ranks, "status": "failed"}
+        return {"kind": kind, "ranks": ranks, "status": "failed", "bw_gbs": bw}
     solve, total = times(s)
     per_rank = s.get("cells_per_rank", [])
     imbalance = max(per_rank) / (sum(per_rank) / len(per_rank)) if per_rank else 1.0
     return {"kind": kind, "ranks": ranks, "status": "ok", "dofs": s["dofs"], "newton": s["solver"]["newton_iterations"],
             "ksp": s["solver"].get("ksp_iterations_total", s["solver"]["ksp_iterations"]), "solve_s": solve, "total_s": total,
             "linear_s": s["solver"]["linear_solve_seconds"],
-            "edge_cut": s.get("edge_cut", -1), "imbalance": imbalance, "energy": s["energy"]}
+            "edge_cut": s.get("edge_cut", -1), "imbalance": imbalance, "energy": s["energy"], "bw_gbs": bw}
 
 
 def print_rows(title, rows):
     print("\n%s" % title)
-    print("%6s %11s %11s %6s %6s %9s %9s %9s %8s %8s %8s %9s %9s" % ("ranks", "DOFs", "DOFs/rank", "Newton", "KSP", "solve[s]", "total[s]", "linear[s]", "eff(sol)", "eff(tot)", "eff(lin)", "edge cut", "imbalance"))
+    print("%6s %11s %11s %6s %6s %9s %9s %9s %8s %8s %8s %8s %8s %9s %9s" % ("ranks", "DOFs", "DOFs/rank", "Newton", "KSP", "solve[s]", "total[s]", "linear[s]", "eff(sol)", "eff(tot)", "eff(lin)", "BW[GB/s]", "ceiling", "edge cut", "imbalance"))
     for r in rows:
         if r["status"] != "ok":
             print("%6d  failed" % r["ranks"])
             continue
-        print("%6d %11d %11d %6d %6d %9.3f %9.3f %9.3f %7.0f%% %7.0f%% %7.0f%% %9d %9.3f" % (r["ranks"], r["dofs"], r["dofs"] // r["ranks"], r["newton"], r["ksp"], r["solve_s"], r["total_s"], r["linear_s"],
-                                                                                           100 * r.get("eff_solve", 0), 100 * r.get("eff_total", 0), 100 * r.get("eff_linear", 0), r["edge_cut"], r["imbalance"]))
+        bw = "%8.2f" % r["bw_gbs"] if r.get("bw_gbs") else "%8s" % "-"
+        ceiling = "%7.0f%%" % (100 * r["eff_ceiling"]) if "eff_ceiling" in r else "%8s" % "-"
+        print("%6d %11d %11d %6d %6d %9.3f %9.3f %9.3f %7.0f%% %7.0f%% %7.0f%% %s %s %9d %9.3f" % (r["ranks"], r["dofs"], r["dofs"] // r["ranks"], r["newton"], r["ksp"], r["solve_s"], r["total_s"], r["linear_s"],
+                                                                                                100 * r.get("eff_solve", 0), 100 * r.get("eff_total", 0), 100 * r.get("eff_linear", 0), bw, ceiling, r["edge_cut"], r["imbalance"]))
 
 
 def write_csv(rows, path):
-    keys = ["kind", "ranks", "dofs", "newton", "ksp", "solve_s", "total_s", "linear_s", "eff_solve", "eff_total", "eff_linear", "edge_cut", "imbalance", "energy", "status"]
+    keys = ["kind", "ranks", "dofs", "newton", "ksp", "solve_s", "total_s", "linear_s", "eff_solve", "eff_total", "eff_linear", "bw_gbs", "eff_ceiling", "edge_cut", "imbalance", "energy", "status"]
     with open(path + ".tmp", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=keys, extrasaction="ignore")
         w.writeheader()
@@ -134,6 +164,8 @@ def plot(results, path, title):
         axes[1].plot(ps, [100 * r["eff_solve"] for r in ok], "o-", label="%s: solve" % kind)
         axes[1].plot(ps, [100 * r["eff_total"] for r in ok], "s--", label="%s: set-up + solve" % kind)
         axes[1].plot(ps, [100 * r["eff_linear"] for r in ok], "^:", label="%s: one linear solve" % kind)
+        if all("eff_ceiling" in r for r in ok):
+            axes[1].plot(ps, [100 * r["eff_ceiling"] for r in ok], "k--", lw=0.8, label="%s: memory-bandwidth ceiling" % kind)
     if "strong" in results and any(r["status"] == "ok" for r in results["strong"]):
         ok = [r for r in results["strong"] if r["status"] == "ok"]
         axes[0].plot([r["ranks"] for r in ok], [ok[0]["solve_s"] * ok[0]["ranks"] / r["ranks"] for r in ok], "k:", label="ideal strong (solve)")
@@ -164,6 +196,7 @@ def main():
     ap.add_argument("--mpiexec", default=os.environ.get("MPIEXEC", "mpirun"))
     ap.add_argument("--mpiexec-args", default="")
     ap.add_argument("--out", default=os.path.join(ROOT, "results", "scaling"))
+    ap.add_argument("--no-stream", action="store_true", help="do not measure the memory bandwidth of each rank count (signorini-stream)")
     ap.add_argument("--no-warm-memory", action="store_true", help="do not touch the free memory once before the runs (a virtual machine's first touch is slow; see run/bench.py)")
     args, extra = ap.parse_known_args()
     if args.ranks:
@@ -187,11 +220,14 @@ def main():
     if "weak" in args.kind:
         results["weak"] = weak(args, extra)
         print_rows("weak scaling, %s, N = %d per rank (domain [0, p] x [0, 1]):" % (title, args.weak_n), results["weak"])
+    if not args.no_stream:
+        print("\nceiling: STREAM bandwidth of p ranks / (p x that of one rank), the efficiency a solve that is limited by")
+        print("memory bandwidth (CG + BoomerAMG) can reach on this machine; efficiencies above it come from work that is not.")
     rows = [r for rs in results.values() for r in rs]
     write_csv(rows, os.path.join(args.out, "scaling.csv"))
     plot(results, os.path.join(args.out, "scaling.png"), title)
     print("\nwrote %s, %s and each run's -log_view (*.log) in %s" % (os.path.join(args.out, "scaling.csv"), os.path.join(args.out, "scaling.png"), args.out))
-    return 1 if any(r["status"] != "ok" for r in rows) else 0
+    return 1 if any(r["status"] != "ok" or (not args.no_stream and r.get("bw_gbs") is None) for r in rows) else 0
 
 
 if __name__ == "__main__":
