@@ -165,7 +165,7 @@ def plot(results, path, title):
         axes[1].plot(ps, [100 * r["eff_total"] for r in ok], "s--", label="%s: set-up + solve" % kind)
         axes[1].plot(ps, [100 * r["eff_linear"] for r in ok], "^:", label="%s: one linear solve" % kind)
         if all("eff_ceiling" in r for r in ok):
-            axes[1].plot(ps, [100 * r["eff_ceiling"] for r in ok], "k--", lw=0.8, label="%s: memory-bandwidth ceiling" % kind)
+            axes[1].plot(ps, [100 * r["eff_ceiling"] for r in ok], "k" + ("--" if kind == "strong" else "-."), lw=0.8, label="%s: memory-bandwidth ceiling" % kind)
     if "strong" in results and any(r["status"] == "ok" for r in results["strong"]):
         ok = [r for r in results["strong"] if r["status"] == "ok"]
         axes[0].plot([r["ranks"] for r in ok], [ok[0]["solve_s"] * ok[0]["ranks"] / r["ranks"] for r in ok], "k:", label="ideal strong (solve)")
