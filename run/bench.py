@@ -2,7 +2,7 @@
 compared with one plain CG + BoomerAMG solve of the same operator measured in the same run.
 
   run/bench [--dims 2,3] [--elements p1,cr] [--n2 256,512,1024,2048] [--n3 12,24,48,96] [--ranks P]
-            [--presets] [--out DIR] [signorini options...]
+            [--presets] [--repeat K] [--out DIR] [signorini options...]
   run/bench --quick            # small sizes only (a minute): checks that everything runs
 
 Scenes: paper-5.1 in 2D (N x N squares), paper-5.1-3d in 3D (N x N x N cubes, 6 tetrahedra each).
@@ -15,12 +15,15 @@ issue's targets with the measured figures. Writes bench.csv and time-per-dof.png
 With --presets, also runs every option file of petsc-options/solvers on one mid-size mesh per dimension.
 Before the first run the free memory is touched once (see warm_memory; --no-warm-memory skips it), and each
 timed solve starts with the memory freed before it given back to the system (-compare_linear), so that the
-contact solve and the linear solve it is compared with start alike."""
+contact solve and the linear solve it is compared with start alike. On a shared or noisy machine, --repeat K
+runs every case K times and reports the median of each time and of the K ratios (each from one run) and
+the largest memory; each run's JSON and log are kept (NAME-runK)."""
 import argparse
 import csv
 import glob
 import json
 import os
+import statistics
 import subprocess
 import sys
 
@@ -70,9 +73,32 @@ def warm_memory():
         subprocess.run([sys.executable, "-c", WARM_CHILD, str(gb)], check=False)
 
 
-def run_case(dim, element, N, ranks, out_dir, extra, preset=None):
+def run_case(dim, element, N, ranks, out_dir, extra, preset=None, repeat=1):
+    """One row per case; with repeat > 1 the case runs that many times and the row holds the median of each
+    time and of each run's VI / linear ratio (every ratio still measured within one run), and the largest
+    peak memory, so that one run disturbed by the machine does not decide a figure."""
+    runs = [run_once(dim, element, N, ranks, out_dir, extra, preset, "-run%d" % (k + 1) if repeat > 1 else "") for k in range(repeat)]
+    failed = [r for r in runs if r["status"] != "ok"]
+    if failed or repeat == 1:
+        return failed[0] if failed else runs[0]
+    return median_row(runs)
+
+
+def median_row(runs):
+    row = dict(runs[0])
+    for k in [k + "_s" for k in STAGES] + ["setup_total_s", "linear_s", "ratio", "us_per_dof"]:
+        values = [r[k] for r in runs if r[k] is not None]
+        row[k] = statistics.median(values) if values else None
+    for k in ["bytes_per_dof", "petsc_bytes_per_dof"]:
+        values = [r[k] for r in runs if r[k] is not None]
+        row[k] = max(values) if values else None
+    row["repeats"] = len(runs)
+    return row
+
+
+def run_once(dim, element, N, ranks, out_dir, extra, preset, suffix):
     scene = "paper-5.1" if dim == 2 else "paper-5.1-3d"
-    tag = "%dd-%s-N%d-np%d%s" % (dim, element, N, ranks, "-" + os.path.basename(preset) if preset else "")
+    tag = "%dd-%s-N%d-np%d%s%s" % (dim, element, N, ranks, "-" + os.path.basename(preset) if preset else "", suffix)
     summary, log = os.path.join(out_dir, tag + ".json"), os.path.join(out_dir, tag + ".log")
     cmd = [EXE, "-options_file", os.path.join(ROOT, "petsc-options", scene), "-space", element] + mesh_args(dim, N)
     if preset:
@@ -108,7 +134,7 @@ def row_from_summary(s, dim, element, N, ranks, preset):
         "bytes_per_dof": rss / dofs if rss else None,
         "petsc_bytes_per_dof": petsc / dofs if petsc else None,
         "matrix_bytes_per_dof": memory.get("matrix_bytes") / dofs if memory.get("matrix_bytes") else None,
-        "status": "ok",
+        "repeats": 1, "status": "ok",
     }
     for k in STAGES:
         row[k + "_s"] = t.get(k, 0.0)
@@ -161,7 +187,7 @@ def print_targets(rows):
 
 def write_csv(rows, path):
     keys = ["scene", "dim", "element", "preset", "N", "ranks", "dofs", "newton", "newton_total", "ksp", "reason"] + [k + "_s" for k in STAGES]
-    keys += ["setup_total_s", "linear_s", "ratio", "us_per_dof", "bytes_per_dof", "petsc_bytes_per_dof", "matrix_bytes_per_dof", "energy", "status"]
+    keys += ["setup_total_s", "linear_s", "ratio", "us_per_dof", "bytes_per_dof", "petsc_bytes_per_dof", "matrix_bytes_per_dof", "energy", "repeats", "status"]
     tmp = path + ".tmp"
     with open(tmp, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=keys, extrasaction="ignore")
@@ -215,8 +241,11 @@ def main():
     ap.add_argument("--presets", action="store_true", help="also run each petsc-options/solvers preset on a mid-size mesh")
     ap.add_argument("--quick", action="store_true", help="small sizes only")
     ap.add_argument("--out", default=os.path.join(ROOT, "results", "bench"))
+    ap.add_argument("--repeat", type=int, default=1, help="run each case this many times and report medians (times, VI/linear) and the largest memory")
     ap.add_argument("--no-warm-memory", action="store_true", help="do not touch the free memory once before the runs (see warm_memory)")
     args, extra = ap.parse_known_args()
+    if args.repeat < 1:
+        ap.error("--repeat: %d is not a positive count" % args.repeat)
     if args.quick:
         args.n2, args.n3 = "64,128", "12,24"
     os.makedirs(args.out, exist_ok=True)
@@ -230,7 +259,7 @@ def main():
     for dim in dims:
         for element in elements:
             for N in sizes[dim]:
-                rows.append(run_case(dim, element, N, args.ranks, args.out, extra))
+                rows.append(run_case(dim, element, N, args.ranks, args.out, extra, repeat=args.repeat))
                 print(line(rows[-1]), flush=True)
     if args.presets:
         presets = sorted(glob.glob(os.path.join(ROOT, "petsc-options", "solvers", "*")))
@@ -238,9 +267,9 @@ def main():
             N = sizes[dim][len(sizes[dim]) // 2 - 1] if len(sizes[dim]) > 1 else sizes[dim][0]
             for element in elements:
                 for preset in presets:
-                    rows.append(run_case(dim, element, N, args.ranks, args.out, extra, preset))
+                    rows.append(run_case(dim, element, N, args.ranks, args.out, extra, preset, args.repeat))
                     print(line(rows[-1]), flush=True)
-    print("\nsummary (%d rank%s; times in seconds from the -log_view stages):" % (args.ranks, "s" if args.ranks > 1 else ""))
+    print("\nsummary (%d rank%s; times in seconds from the -log_view stages%s):" % (args.ranks, "s" if args.ranks > 1 else "", "; medians of %d runs each" % args.repeat if args.repeat > 1 else ""))
     print_table(rows)
     print_targets(rows)
     write_csv(rows, os.path.join(args.out, "bench.csv"))

@@ -1,0 +1,63 @@
+"""run/bench on small 2D CR meshes (independent recomputation from the per-run summaries it keeps):
+- one run per case: each row's times, VI / linear ratio and bytes per DOF are those of the run's JSON;
+- --repeat 3: three runs per case, each kept; each row holds the median of every time and of the three
+  ratios and the largest peak memory, recomputed here from the three JSON files;
+- bench.csv and time-per-dof.png are written, no *.tmp file is left; --repeat 0 is a clear usage error."""
+import csv
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+
+from harness import ENV, ROOT, Checker
+
+c = Checker()
+BENCH = os.path.join(ROOT, "run", "bench.py")
+STAGES = ["mesh", "distribute", "refine", "setup", "assemble", "solve"]
+SIZES = [32, 64]
+
+
+def bench(tmp, *more):
+    cmd = [sys.executable, BENCH, "--dims", "2", "--elements", "cr", "--n2", ",".join(map(str, SIZES)), "--no-warm-memory", "--out", tmp] + list(more)
+    return subprocess.run(cmd, capture_output=True, text=True, env=ENV)
+
+
+def close(a, b):
+    return abs(a - b) <= 1e-9 * max(abs(a), abs(b), 1e-30)
+
+
+def check_rows(tmp, repeat):
+    with open(os.path.join(tmp, "bench.csv")) as f:
+        rows = {int(r["N"]): r for r in csv.DictReader(f)}
+    c.check(sorted(rows) == SIZES and all(r["status"] == "ok" and int(r["repeats"]) == repeat for r in rows.values()), "repeat %d: rows %s" % (repeat, sorted(rows)))
+    for N in SIZES:
+        names = ["2d-cr-N%d-np1%s.json" % (N, "-run%d" % (k + 1) if repeat > 1 else "") for k in range(repeat)]
+        runs = []
+        for name in names:
+            with open(os.path.join(tmp, name)) as f:
+                runs.append(json.load(f))
+        r = rows[N]
+        want = {k + "_s": statistics.median(s["time"][k] for s in runs) for k in STAGES}
+        want["linear_s"] = statistics.median(s["solver"]["linear_solve_seconds"] for s in runs)
+        want["ratio"] = statistics.median(s["solver"]["solve_linear_ratio"] for s in runs)
+        want["bytes_per_dof"] = max(s["memory"]["peak_rss_bytes_sum"] for s in runs) / runs[0]["dofs"]
+        bad = [k for k, v in want.items() if not close(float(r[k]), v)]
+        c.check(not bad and int(r["dofs"]) == runs[0]["dofs"], "repeat %d, N = %d: row against %d run(s) (%s)" % (repeat, N, repeat, "mismatch in %s" % bad if bad else "times, ratio, bytes agree"))
+    files = os.listdir(tmp)
+    c.check("time-per-dof.png" in files and not any(f.endswith(".tmp") or ".tmp." in f for f in files), "repeat %d: files %s" % (repeat, sorted(files)))
+
+
+for repeat in [1, 3]:
+    with tempfile.TemporaryDirectory() as tmp:
+        p = bench(tmp, *(["--repeat", str(repeat)] if repeat > 1 else []))
+        c.check(p.returncode == 0, "run/bench --repeat %d exit status %d %s" % (repeat, p.returncode, p.stderr[-400:]))
+        if p.returncode == 0:
+            check_rows(tmp, repeat)
+            c.check(("medians of %d runs each" % repeat in p.stdout) == (repeat > 1), "repeat %d: the summary says whether it shows medians" % repeat)
+
+with tempfile.TemporaryDirectory() as tmp:
+    p = bench(tmp, "--repeat", "0")
+    c.check(p.returncode == 2 and "--repeat: 0 is not a positive count" in p.stderr, "--repeat 0: exit %d, %s" % (p.returncode, p.stderr.strip().splitlines()[-1:]))
+c.done()
