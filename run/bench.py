@@ -79,9 +79,9 @@ def run_case(dim, element, N, ranks, out_dir, extra, preset=None, repeat=1):
     peak memory, so that one run disturbed by the machine does not decide a figure."""
     runs = [run_once(dim, element, N, ranks, out_dir, extra, preset, "-run%d" % (k + 1) if repeat > 1 else "") for k in range(repeat)]
     failed = [r for r in runs if r["status"] != "ok"]
-    if failed or repeat == 1:
-        return failed[0] if failed else runs[0]
-    return median_row(runs)
+    if failed:
+        return failed[0]
+    return runs[0] if repeat == 1 else median_row(runs)
 
 
 def median_row(runs):

@@ -58,8 +58,8 @@ def efficiencies(rows, strong):
     base = next((r for r in rows if r["status"] == "ok"), None)
     for r in rows:
         if base and r["status"] == "ok":
+            scale = base["ranks"] / r["ranks"] if strong else 1.0
             for k in ["solve", "total", "linear"]:
-                scale = base["ranks"] / r["ranks"] if strong else 1.0
                 r["eff_" + k] = base[k + "_s"] * scale / r[k + "_s"]
             if r.get("bw_gbs") and base.get("bw_gbs"):
                 r["eff_ceiling"] = (r["bw_gbs"] / r["ranks"]) / (base["bw_gbs"] / base["ranks"])

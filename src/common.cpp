@@ -105,4 +105,30 @@ std::string LastPetscError(PetscErrorCode ierr)
   if (specific && specific[0]) return specific;
   return text ? text : "unknown PETSc error";
 }
+
+PetscErrorCode OptionsAsInputError(MPI_Comm comm, PetscErrorCode ierr)
+{
+  PetscFunctionBeginUser;
+  if (ierr && ierr != kInputError) {
+    std::string message = LastPetscError(ierr);
+    message.erase(message.find_last_not_of(" \n") + 1);
+    SIGNORINI_INPUT_ERROR(comm, "invalid option: %s", message.c_str());
+  }
+  PetscCall(ierr);
+  PetscFunctionReturn(0);
+}
+
+int ExitStatus(MPI_Comm comm, PetscErrorCode ierr, const char *program)
+{
+  if (!ierr) return 0;
+  PetscMPIInt rank;
+  MPI_Comm_rank(comm, &rank);
+  if (ierr == kInputError) {
+    if (rank == 0) std::fprintf(stderr, "%s: error: %s\n", program, LastPetscError(ierr).c_str());
+    return 1;
+  }
+  std::fprintf(stderr, "%s: error on rank %d (PETSc error %d): %s\n", program, rank, (int)ierr, LastPetscError(ierr).c_str());
+  MPI_Abort(comm, 2);
+  return 2;
+}
 } // namespace signorini

@@ -67,15 +67,7 @@ static PetscErrorCode Run(MPI_Comm comm)
   PetscFunctionBeginUser;
   PetscCall(PetscTime(&start));
   PetscCall(StagesRegister());
-  // Reading options involves no rank-dependent work (every rank sees the same options database), so an
-  // error PETSc raises there (an -space value not in its list, "-refine abc") is an input error on all ranks.
-  PetscErrorCode ierr = ReadSettings(comm, s);
-  if (ierr && ierr != kInputError) {
-    std::string message = LastPetscError(ierr);
-    message.erase(message.find_last_not_of(" \n") + 1);
-    SIGNORINI_INPUT_ERROR(comm, "invalid option: %s", message.c_str());
-  }
-  PetscCall(ierr);
+  PetscCall(OptionsAsInputError(comm, ReadSettings(comm, s)));
   PetscCall(PetscOptionsHasHelp(NULL, &help));
   if (help) {
     PetscCall(SolverOptionsHelp(comm));
@@ -176,18 +168,7 @@ int main(int argc, char **argv)
   if (!traceback) PetscPushErrorHandler(PetscReturnErrorHandler, NULL);
   ierr = Run(PETSC_COMM_WORLD);
   if (!ierr) ierr = WarnUnusedOptions(PETSC_COMM_WORLD);
-  if (ierr) {
-    PetscMPIInt rank;
-    MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
-    if (ierr == kInputError) {
-      // Raised on every rank at the same point: report once and shut down cleanly.
-      if (rank == 0) std::fprintf(stderr, "signorini: error: %s\n", LastPetscError(ierr).c_str());
-      PetscFinalize();
-      return 1;
-    }
-    // Possibly raised on this rank only: the others may be waiting in a collective, so abort them all.
-    std::fprintf(stderr, "signorini: error on rank %d (PETSc error %d): %s\n", rank, (int)ierr, LastPetscError(ierr).c_str());
-    MPI_Abort(PETSC_COMM_WORLD, 2);
-  }
-  return PetscFinalize();
+  const int status = ExitStatus(PETSC_COMM_WORLD, ierr, "signorini");
+  PetscFinalize();
+  return status;
 }

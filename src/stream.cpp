@@ -8,7 +8,6 @@ static const char help[] =
 #include "signorini/common.h"
 
 #include <algorithm>
-#include <cstdio>
 #include <limits>
 #include <vector>
 
@@ -65,10 +64,7 @@ static PetscErrorCode Run(MPI_Comm comm)
   double        rate = 0;
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_size(comm, &size));
-  // Every rank reads the same options, so an error there ("-stream_n abc") is an input error on all ranks.
-  PetscErrorCode ierr = StreamOptionsFromCommandLine(comm, o);
-  if (ierr && ierr != kInputError) SIGNORINI_INPUT_ERROR(comm, "invalid option: %s", LastPetscError(ierr).c_str());
-  PetscCall(ierr);
+  PetscCall(OptionsAsInputError(comm, StreamOptionsFromCommandLine(comm, o)));
   PetscCall(Triad(comm, o, &rate));
   PetscCall(PetscPrintf(comm, "triad bandwidth: %.3f GB/s on %d rank(s), %.3f GB/s per rank (%d doubles per array and rank, fastest of %d)\n", rate / 1e9, size, rate / 1e9 / size, (int)o.n, (int)o.repeat));
   PetscFunctionReturn(0);
@@ -79,15 +75,8 @@ int main(int argc, char **argv)
   PetscErrorCode ierr = PetscInitialize(&argc, &argv, NULL, help);
   if (ierr) return ierr;
   PetscPushErrorHandler(PetscReturnErrorHandler, NULL);
-  ierr = Run(PETSC_COMM_WORLD);
-  if (ierr) {
-    PetscMPIInt rank;
-    MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
-    // Input errors and a wrong triad are raised on every rank; anything else may not be.
-    if (ierr != kInputError) MPI_Abort(PETSC_COMM_WORLD, 2);
-    if (rank == 0) std::fprintf(stderr, "signorini-stream: error: %s\n", LastPetscError(ierr).c_str());
-    PetscFinalize();
-    return 1;
-  }
-  return PetscFinalize();
+  // Input errors and a wrong triad (CheckAll) are raised on every rank.
+  const int status = ExitStatus(PETSC_COMM_WORLD, Run(PETSC_COMM_WORLD), "signorini-stream");
+  PetscFinalize();
+  return status;
 }

@@ -45,4 +45,15 @@ std::string Format(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 namespace signorini {
 // The text of the last PETSc error (for errors caught from a call made without PetscCall).
 std::string LastPetscError(PetscErrorCode ierr);
+
+// Reading options involves no rank-dependent work (every rank sees the same options database), so an error
+// PETSc raises while reading them (a value not in a list, "-refine abc") is raised again as an input error
+// on all ranks. Pass the code returned by the component's options function.
+PetscErrorCode OptionsAsInputError(MPI_Comm comm, PetscErrorCode ierr);
+
+// The exit status of an executable after its work returned `ierr`, to be called before PetscFinalize:
+// an input error (raised on every rank at the same point) is printed once as "PROGRAM: error: ..." and
+// gives 1; any other error may have been raised on a subset of ranks, so it is printed with its rank and
+// the whole job is aborted instead of leaving the other ranks waiting in a collective.
+int ExitStatus(MPI_Comm comm, PetscErrorCode ierr, const char *program);
 } // namespace signorini
