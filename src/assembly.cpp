@@ -39,11 +39,13 @@ static PetscErrorCode CellCoefficients(const Space &space, const Problem &proble
 {
   std::string error;
   PetscFunctionBeginUser;
-  sys.kappa.resize(space.NumCells());
-  for (PetscInt c = 0; c < space.NumCells(); ++c) {
+  // A constant kappa (checked positive by ProblemSetUp's evaluation) is one value, not one per cell.
+  const PetscInt n = problem.kappa->IsConstant() ? std::min<PetscInt>(1, space.NumCells()) : space.NumCells();
+  sys.kappa.resize(n);
+  for (PetscInt c = 0; c < n; ++c) {
     CellGeometry g;
     ComputeCellGeometry(space.dim, space.X(c), g);
-    problem.kappa->SetCellSet(space.cellSet[c]);
+    problem.kappa->SetCellSet(space.CellSet(c));
     const PetscReal k = problem.kappa->Scalar(g.centroid, space.dim, error);
     if (!(k > 0) && error.empty()) error = Format("option -kappa: '%s' is %g <= 0 at (%g, %g, %g); kappa must be positive", problem.kappa->Text().c_str(), (double)k, (double)g.centroid[0], (double)g.centroid[1], space.dim == 3 ? (double)g.centroid[2] : 0.0);
     sys.kappa[c] = k;
@@ -62,7 +64,7 @@ static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, 
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
     CellGeometry g;
     ComputeCellGeometry(space.dim, space.X(c), g);
-    ElementStiffness(space, c, sys.kappa[c], g, Ke);
+    ElementStiffness(space, c, sys.Kappa(c), g, Ke);
     PetscCall(MatSetValuesLocal(sys.A, nb, space.Dofs(c), nb, space.Dofs(c), Ke, ADD_VALUES));
     if (zeroLoad) continue;
     std::fill(be, be + nb, 0.0);
@@ -179,7 +181,7 @@ PetscErrorCode DiscreteEnergy(const Space &space, const System &sys, Vec u, Pets
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
     CellGeometry g;
     ComputeCellGeometry(space.dim, space.X(c), g);
-    ElementStiffness(space, c, sys.kappa[c], g, Ke);
+    ElementStiffness(space, c, sys.Kappa(c), g, Ke);
     const PetscInt *dofs = space.Dofs(c);
     for (PetscInt i = 0; i < nb; ++i)
       for (PetscInt j = 0; j < nb; ++j) local += 0.5 * PetscRealPart(a[dofs[i]]) * Ke[i * nb + j] * PetscRealPart(a[dofs[j]]);

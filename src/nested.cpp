@@ -195,6 +195,7 @@ PetscErrorCode SetUpLevel(DM dm, Element element, const Problem &problem, const 
   PetscCall(SpaceCreate(dm, element, problem, level.space));
   PetscCall(StagePop(Stage::Setup));
   PetscCall(AssembleSystem(level.space, problem, assembly, level.sys));
+  PetscCall(SpaceReleaseMesh(level.space, {level.sys.b, level.sys.load, level.sys.uD})); // the level's solve and prolongation need the tables only
   PetscCall(DMCreateGlobalVector(level.space.dm, &level.u));
   PetscCall(VecDuplicate(level.u, &level.lower));
   PetscCall(ContactLowerBound(level.space, problem, level.lower));
@@ -231,10 +232,11 @@ PetscErrorCode NestedSolve(MeshLevels &levels, const Problem &problem, const Ass
     lo.compareLinear = false;
     lo.initialGuess  = l > 0;
     PetscCall(SetUpLevel(levels.dm[l], fine.element, problem, assembly, cur, setupSeconds));
+    PetscCall(DMDestroy(&levels.dm[l])); // its space holds the layout, not the mesh: the memory is free for the solves
     if (l > 0) {
       PetscCall(ProlongateLevel(prev, cur.space, levels.parent[l], problem, cur.u, prolongSeconds));
       PetscCall(prev.Destroy());
-      PetscCall(DMDestroy(&levels.dm[l - 1])); // its last user is gone: the finest solve can use the memory
+      std::vector<PetscInt>().swap(levels.parent[l]); // used once
     }
     PetscCall(Solve(cur.space, problem, cur.sys, cur.u, lr, lo));
     summary.push_back(LevelSummary(cur.space, lr, setupSeconds, prolongSeconds));
@@ -247,7 +249,7 @@ PetscErrorCode NestedSolve(MeshLevels &levels, const Problem &problem, const Ass
   if (L > 1) {
     PetscCall(ProlongateLevel(prev, fine, levels.parent[L - 1], problem, u, prolongSeconds));
     PetscCall(prev.Destroy());
-    PetscCall(DMDestroy(&levels.dm[L - 2]));
+    std::vector<PetscInt>().swap(levels.parent[L - 1]);
     fo.initialGuess = true;
   }
   PetscCall(Solve(fine, problem, fineSys, u, r, fo));

@@ -1,4 +1,5 @@
 #include "signorini/space.h"
+#include "signorini/layout.h"
 #include "signorini/mesh.h"
 
 #include <algorithm>
@@ -154,7 +155,7 @@ static PetscErrorCode BuildCellTables(Space &s, PetscInt vEnd)
   PetscCall(VecRestoreArrayRead(coords, &xa));
   s.cellDof.resize(nc * nb);
   s.cellVert.resize(nc * nb);
-  s.cellSet.assign(nc, -1);
+  if (cellSets) s.cellSet.assign(nc, -1);
   for (PetscInt c = 0; c < nc; ++c) {
     const PetscInt  cell = s.cStart + c;
     const PetscInt *cone;
@@ -382,6 +383,18 @@ PetscErrorCode SpaceReleaseWorkVectors(const Space &s)
   PetscFunctionBeginUser;
   PetscCall(DMClearLocalVectors(s.dm));
   PetscCall(DMClearGlobalVectors(s.dm));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SpaceReleaseMesh(Space &s, std::initializer_list<Vec> vecs)
+{
+  DM layout;
+  PetscFunctionBeginUser;
+  PetscCall(LayoutCreateFromDM(s.dm, &layout));
+  for (Vec v : vecs)
+    if (v) PetscCall(VecSetDM(v, layout));
+  PetscCall(DMDestroy(&s.dm));
+  s.dm = layout;
   PetscFunctionReturn(0);
 }
 

@@ -50,7 +50,7 @@ static PetscErrorCode ReferenceMatrix(const Space &space, const System &sys, Mat
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
     CellGeometry g;
     ComputeCellGeometry(space.dim, space.X(c), g);
-    ElementStiffness(space, c, sys.kappa[c], g, Ke);
+    ElementStiffness(space, c, sys.Kappa(c), g, Ke);
     PetscCall(MatSetValuesLocal(*B, nb, space.Dofs(c), nb, space.Dofs(c), Ke, ADD_VALUES));
   }
   PetscCall(MatAssemblyBegin(*B, MAT_FINAL_ASSEMBLY));

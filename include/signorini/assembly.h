@@ -21,8 +21,9 @@ struct System {
   Vec                    b = nullptr;    // load with Dirichlet values and their column contributions folded in
   Vec                    load = nullptr; // chi as a vector (before elimination): chi(v) = load . v
   Vec                    uD = nullptr;   // Dirichlet values on Dirichlet DOFs, 0 elsewhere
-  std::vector<PetscReal> kappa;          // per local cell
+  std::vector<PetscReal> kappa;          // per local cell, or one value when kappa is constant
   Quadrature             cellRule, faceRule;
+  PetscReal              Kappa(PetscInt c) const { return kappa.size() == 1 ? kappa[0] : kappa[c]; }
 };
 
 // Pushes the Setup (matrix creation) and Assemble stages.

@@ -33,6 +33,8 @@ public:
   const std::string &Option() const { return option_; }
   // True when the expression is the constant 0, so that an integral of it can be skipped.
   bool IsZero() const { return constant_ && components_ == 1 && value_[0] == 0; }
+  // True when the expression uses no variable (x, y, z or cell_set): one value everywhere.
+  bool IsConstant() const { return constant_; }
 
 private:
   Expression() = default;

@@ -37,8 +37,9 @@ PetscErrorCode TransferActiveSet(const Space &coarse, Vec uH, Vec lowerH, const 
 // system the caller owns, is solved from the last prolongation into u. result receives the finest solve
 // plus one entry per level in result.levels (the finest level's set-up time is the caller's to fill) and
 // the time of all solves together in result.solveSeconds. Each coarse mesh of `levels` is destroyed
-// (its entry set to NULL) as soon as the next level no longer needs it, so that the finest solve, the
-// peak of the run's memory, does not hold them.
+// (its entry set to NULL) once its level's space and system are built (SpaceReleaseMesh), and each parent
+// map once it has been used, so that the solves, and above all the finest one, the peak of the run's
+// memory, do not hold them.
 PetscErrorCode NestedSolve(MeshLevels &levels, const Problem &problem, const AssemblyOptions &assembly, const Space &fine, const System &fineSys, Vec u, SolveResult &result, const SolveOptions &opts);
 
 } // namespace signorini

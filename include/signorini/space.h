@@ -14,6 +14,8 @@
 
 #include <petscdmplex.h>
 
+#include <initializer_list>
+
 namespace signorini {
 
 enum class Element { P1, CR };
@@ -40,7 +42,9 @@ struct BoundaryFace {
 enum DofKind : char { kFree = 0, kDirichlet = 1, kContact = 2 };
 
 struct Space {
-  DM       dm = nullptr; // mesh clone carrying the local section of this space
+  // The DOF layout: a clone of the mesh DM carrying the local section of this space, or, after
+  // SpaceReleaseMesh, a DMShell with the same local and global vectors and exchange between them.
+  DM       dm = nullptr;
   Element  element = Element::CR;
   PetscInt dim = 2, cStart = 0, cEnd = 0, vStart = 0;
   PetscInt numLocal = 0, numOwned = 0, numGlobal = 0, numContactGlobal = 0, numDirichletGlobal = 0;
@@ -49,7 +53,7 @@ struct Space {
   std::vector<PetscInt>     cellDof;   // (dim+1) local DOF indices per cell
   std::vector<PetscInt>     cellVert;  // (dim+1) vertices per cell (as v - vStart), vertex k opposite cone face k
   std::vector<PetscReal>    vertX;     // dim coordinates per local vertex (v - vStart)
-  std::vector<PetscInt>     cellSet;   // "Cell Sets" value per cell, -1 if none
+  std::vector<PetscInt>     cellSet;   // "Cell Sets" value per cell (-1: none); empty if the mesh has no such label
   std::vector<char>         kindLocal; // DofKind per local DOF (consistent across ranks)
   std::vector<PetscInt>     dirichletOwned, contactOwned; // indices into the owned part of a global Vec
   std::vector<BoundaryFace> boundary;  // faces of all named parts on this rank
@@ -62,6 +66,7 @@ struct Space {
   };
 
   PetscInt        NumCells() const { return cEnd - cStart; }
+  PetscInt        CellSet(PetscInt c) const { return cellSet.empty() ? -1 : cellSet[c]; }
   PetscInt        Nb() const { return dim + 1; }
   const PetscInt *Dofs(PetscInt c) const { return &cellDof[c * (dim + 1)]; }
   PetscInt        Vertex(PetscInt c, PetscInt k) const { return vStart + cellVert[c * (dim + 1) + k]; } // mesh point
@@ -117,6 +122,11 @@ PetscErrorCode ElementFromCommandLine(MPI_Comm comm, Element &e);
 // and that psi <= u_D where Gamma_D and Gamma_C meet (otherwise no u in H^1 satisfies both).
 PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Space &space);
 PetscErrorCode SpaceDestroy(Space &space);
+// Replaces space.dm, the mesh clone, by a DMShell with the same layout (see layout.h) and moves `vecs`,
+// vectors of the space, onto it, so that the space no longer holds the mesh: once the caller drops its own
+// references, the DMPlex is freed. Everything but the HDF5 output works on the tables and the layout
+// (assembly, solve, KKT, energy, errors, prolongation); call it after AssembleSystem. Collective.
+PetscErrorCode SpaceReleaseMesh(Space &space, std::initializer_list<Vec> vecs);
 // The DM keeps the work vectors of DMGetLocalVector/DMGetGlobalVector after they are restored, for the
 // next caller; at 10^7 DOFs each is 80 MB that should not stay through a solve. Frees them.
 PetscErrorCode SpaceReleaseWorkVectors(const Space &space);
