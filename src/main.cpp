@@ -175,6 +175,7 @@ int main(int argc, char **argv)
   ierr = Run(PETSC_COMM_WORLD);
   if (!ierr) ierr = WarnUnusedOptions(PETSC_COMM_WORLD);
   const int status = ExitStatus(PETSC_COMM_WORLD, ierr, "signorini");
+  if (!traceback) PetscPopErrorHandler(); // -malloc_dump would list the pushed handler as a leak
   PetscFinalize();
   return status;
 }

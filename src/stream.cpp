@@ -77,6 +77,7 @@ int main(int argc, char **argv)
   PetscPushErrorHandler(PetscReturnErrorHandler, NULL);
   // Input errors and a wrong triad (CheckAll) are raised on every rank.
   const int status = ExitStatus(PETSC_COMM_WORLD, Run(PETSC_COMM_WORLD), "signorini-stream");
+  PetscPopErrorHandler();
   PetscFinalize();
   return status;
 }
