@@ -58,19 +58,20 @@ static PetscErrorCode CellCoefficients(const Space &space, const Problem &proble
 static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, System &sys, PetscScalar *load, std::string &error)
 {
   const PetscInt nb = space.Nb();
-  PetscReal      Ke[16], be[4], lambda[4], x[3];
+  PetscReal      Ke[16], be[4], x[3];
   PetscFunctionBeginUser;
   const bool zeroLoad = problem.f->IsZero();
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
-    CellGeometry g;
-    ComputeCellGeometry(space.dim, space.X(c), g);
+    CellGeometry        g;
+    const Space::Coords X = space.X(c); // gathered once: every quadrature point needs it
+    ComputeCellGeometry(space.dim, X, g);
     ElementStiffness(space, c, sys.Kappa(c), g, Ke);
     PetscCall(MatSetValuesLocal(sys.A, nb, space.Dofs(c), nb, space.Dofs(c), Ke, ADD_VALUES));
     if (zeroLoad) continue;
     std::fill(be, be + nb, 0.0);
     for (PetscInt q = 0; q < sys.cellRule.Size(); ++q) {
-      std::copy(sys.cellRule.Point(q), sys.cellRule.Point(q) + nb, lambda);
-      space.Point(c, lambda, x);
+      const PetscReal *lambda = sys.cellRule.Point(q);
+      SimplexPoint(space.dim, X, lambda, x);
       const PetscReal fq = problem.f->Scalar(x, space.dim, error) * sys.cellRule.weights[q] * g.volume;
       for (PetscInt i = 0; i < nb; ++i) be[i] += fq * space.BasisValue(c, i, lambda);
     }

@@ -63,14 +63,7 @@ bool ComputeCellGeometry(PetscInt dim, const PetscReal *X, CellGeometry &g)
   return true;
 }
 
-void Space::Point(PetscInt c, const PetscReal *lambda, PetscReal *x) const
-{
-  const Coords Xc = X(c);
-  for (PetscInt d = 0; d < dim; ++d) {
-    x[d] = 0;
-    for (PetscInt k = 0; k <= dim; ++k) x[d] += lambda[k] * Xc[k * dim + d];
-  }
-}
+void Space::Point(PetscInt c, const PetscReal *lambda, PetscReal *x) const { SimplexPoint(dim, X(c), lambda, x); }
 
 void Space::DofPoint(PetscInt c, PetscInt i, PetscReal *x) const
 {

@@ -172,6 +172,13 @@ int main(int argc, char **argv)
   }
   for (int n = 1; n <= 12; ++n) TestGaussLegendre(ck, n);
 
+  // The symmetric rules' point counts, which set the cost of a load integral (exactness is checked above).
+  const int points2[] = {1, 3, 6, 6, 7}, points3[] = {1, 4, 14, 14, 14};
+  for (int degree = 1; degree <= 5; ++degree) {
+    const PetscInt n2 = signorini::SimplexQuadrature(2, degree).Size(), n3 = signorini::SimplexQuadrature(3, degree).Size();
+    ck.Check(n2 == points2[degree - 1] && n3 == points3[degree - 1], "degree " + std::to_string(degree) + " rules have " + std::to_string(points2[degree - 1]) + " (triangle) and " + std::to_string(points3[degree - 1]) + " (tetrahedron) points", "%d and %d", (int)n2, (int)n3);
+  }
+
   const int rc = ck.Finish();
   ierr         = PetscFinalize();
   return rc ? rc : ierr;

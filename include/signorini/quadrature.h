@@ -1,8 +1,10 @@
 // Quadrature rules on the reference simplex of dimension 1, 2 or 3, in barycentric coordinates.
 //
-// The rule of degree 1 is the one-point centroid rule. Higher degrees use Stroud's conical product rule:
-// Gauss-Legendre points on the unit cube collapsed onto the simplex (Duffy map), with enough points in each
-// direction that the Jacobian of the collapse is integrated too. All weights are positive and sum to 1, so
+// The rule of degree 1 is the one-point centroid rule. Degrees 2 to 5 on triangles and tetrahedra use
+// fully symmetric rules (3, 6, 6, 7 points on a triangle; 4, 14, 14, 14 on a tetrahedron). Other degrees,
+// and segments, use Stroud's conical product rule: Gauss-Legendre points on the unit cube collapsed onto the
+// simplex (Duffy map), with enough points in each direction that the Jacobian of the collapse is integrated
+// too (on a segment, the Gauss-Legendre rule). All weights are positive and sum to 1, so
 // integral over T of g = |T| * sum_q w_q g(x_q). One rule serves triangles, tetrahedra and their faces.
 #pragma once
 

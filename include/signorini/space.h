@@ -29,6 +29,14 @@ struct CellGeometry {
 };
 // Returns false for a degenerate cell.
 bool ComputeCellGeometry(PetscInt dim, const PetscReal *X, CellGeometry &g);
+// x = sum_k lambda_k X_k: the point of barycentric coordinates lambda in the simplex with vertices X.
+inline void SimplexPoint(PetscInt dim, const PetscReal *X, const PetscReal *lambda, PetscReal *x)
+{
+  for (PetscInt d = 0; d < dim; ++d) {
+    x[d] = 0;
+    for (PetscInt k = 0; k <= dim; ++k) x[d] += lambda[k] * X[k * dim + d];
+  }
+}
 
 // A face on a named boundary part, seen from its only cell.
 struct BoundaryFace {
