@@ -120,11 +120,14 @@ static void DirichletValues(const Space &space, const Problem &problem, const Sy
 
 PetscErrorCode AssembleSystem(const Space &space, const Problem &problem, const AssemblyOptions &opts, System &sys)
 {
-  MPI_Comm    comm = PetscObjectComm((PetscObject)space.dm);
-  Vec         loc;
-  PetscScalar *a;
-  std::string error;
+  MPI_Comm             comm = PetscObjectComm((PetscObject)space.dm);
+  Vec                  loc;
+  PetscScalar         *a;
+  std::string          error;
+  static PetscLogEvent cellLoop = 0, elimination = 0; // -log_view lists them under the Assemble stage
   PetscFunctionBeginUser;
+  if (!cellLoop) PetscCall(PetscLogEventRegister("AssembleCells", MAT_CLASSID, &cellLoop));
+  if (!elimination) PetscCall(PetscLogEventRegister("DirichletElim", MAT_CLASSID, &elimination));
   PetscCall(StagePush(Stage::Setup));
   PetscCall(CreateStiffnessMatrix(space, &sys.A));
   PetscCall(DMCreateGlobalVector(space.dm, &sys.b));
@@ -140,8 +143,10 @@ PetscErrorCode AssembleSystem(const Space &space, const Problem &problem, const 
   PetscCall(DMGetLocalVector(space.dm, &loc));
   PetscCall(VecSet(loc, 0));
   PetscCall(VecGetArray(loc, &a));
+  PetscCall(PetscLogEventBegin(cellLoop, 0, 0, 0, 0));
   PetscCall(AssembleCells(space, problem, sys, a, error));
   if (problem.HasNeumann()) AssembleNeumann(space, problem, sys, a, error);
+  PetscCall(PetscLogEventEnd(cellLoop, 0, 0, 0, 0));
   PetscCall(VecRestoreArray(loc, &a));
   PetscCall(MatAssemblyBegin(sys.A, MAT_FINAL_ASSEMBLY));
   PetscCall(VecSet(sys.load, 0));
@@ -162,8 +167,10 @@ PetscErrorCode AssembleSystem(const Space &space, const Problem &problem, const 
   PetscCall(VecGetOwnershipRange(sys.b, &rstart, NULL));
   std::vector<PetscInt> rows(space.dirichletOwned);
   for (PetscInt &r : rows) r += rstart;
+  PetscCall(PetscLogEventBegin(elimination, 0, 0, 0, 0));
   PetscCall(VecCopy(sys.load, sys.b));
   PetscCall(MatZeroRowsColumns(sys.A, (PetscInt)rows.size(), rows.data(), 1.0, sys.uD, sys.b));
+  PetscCall(PetscLogEventEnd(elimination, 0, 0, 0, 0));
   PetscCall(StagePop(Stage::Assemble));
   PetscFunctionReturn(0);
 }

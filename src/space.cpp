@@ -350,10 +350,25 @@ static PetscErrorCode CheckObstacleMeetsDirichlet(const Space &s, const Problem 
   PetscFunctionReturn(0);
 }
 
+// -log_view lists the steps of SpaceCreate under the Setup stage.
+static PetscErrorCode SpaceEvents(PetscLogEvent ev[4])
+{
+  static PetscLogEvent events[4] = {0, 0, 0, 0};
+  static const char   *names[4]  = {"SpaceSection", "SpaceCellTables", "SpaceBoundary", "SpaceClassify"};
+  PetscFunctionBeginUser;
+  for (int i = 0; i < 4; ++i) {
+    if (!events[i]) PetscCall(PetscLogEventRegister(names[i], DM_CLASSID, &events[i]));
+    ev[i] = events[i];
+  }
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Space &s)
 {
-  PetscInt vStart, vEnd, fStart, fEnd;
+  PetscInt      vStart, vEnd, fStart, fEnd;
+  PetscLogEvent ev[4];
   PetscFunctionBeginUser;
+  PetscCall(SpaceEvents(ev));
   PetscCall(DMClone(mesh, &s.dm));
   PetscCall(PetscObjectSetName((PetscObject)s.dm, "mesh"));
   s.element = element;
@@ -363,11 +378,19 @@ PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Spa
   PetscCall(DMPlexGetHeightStratum(s.dm, 1, &fStart, &fEnd));
   PetscCall(DMPlexGetHeightStratum(s.dm, 0, &s.cStart, &s.cEnd));
   s.vStart = vStart;
+  PetscCall(PetscLogEventBegin(ev[0], 0, 0, 0, 0));
   PetscCall(CreateSection(s, vStart, vEnd, fStart, fEnd));
+  PetscCall(PetscLogEventEnd(ev[0], 0, 0, 0, 0));
+  PetscCall(PetscLogEventBegin(ev[1], 0, 0, 0, 0));
   PetscCall(BuildCellTables(s, vEnd));
+  PetscCall(PetscLogEventEnd(ev[1], 0, 0, 0, 0));
+  PetscCall(PetscLogEventBegin(ev[2], 0, 0, 0, 0));
   PetscCall(CollectBoundary(s, problem, fStart, fEnd));
+  PetscCall(PetscLogEventEnd(ev[2], 0, 0, 0, 0));
+  PetscCall(PetscLogEventBegin(ev[3], 0, 0, 0, 0));
   PetscCall(ClassifyDofs(s, problem));
   if (problem.HasContact() && !problem.dirichlet.empty()) PetscCall(CheckObstacleMeetsDirichlet(s, problem));
+  PetscCall(PetscLogEventEnd(ev[3], 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }
 
