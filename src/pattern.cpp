@@ -29,7 +29,8 @@ static DofCells BuildDofCells(const Space &space)
   const PetscInt nb = space.Nb(), nc = space.NumCells();
   DofCells       dc;
   dc.offset.assign(space.numLocal + 1, 0);
-  for (PetscInt k = 0; k < nc * nb; ++k) ++dc.offset[space.cellDof[k] + 1];
+  for (PetscInt c = 0; c < nc; ++c)
+    for (PetscInt j = 0; j < nb; ++j) ++dc.offset[space.Dofs(c)[j] + 1];
   for (PetscInt i = 0; i < space.numLocal; ++i) dc.offset[i + 1] += dc.offset[i];
   dc.cells.resize(nc * nb);
   std::vector<PetscInt> next(dc.offset.begin(), dc.offset.end() - 1);

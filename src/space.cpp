@@ -146,7 +146,7 @@ static PetscErrorCode BuildCellTables(Space &s, PetscInt vEnd)
     for (PetscInt d = 0; d < s.dim; ++d) s.vertX[(v - s.vStart) * s.dim + d] = PetscRealPart(xa[off + d]);
   }
   PetscCall(VecRestoreArrayRead(coords, &xa));
-  s.cellDof.resize(nc * nb);
+  if (s.element == Element::CR) s.cellDof.resize(nc * nb);
   s.cellVert.resize(nc * nb);
   if (cellSets) s.cellSet.assign(nc, -1);
   for (PetscInt c = 0; c < nc; ++c) {
@@ -159,9 +159,9 @@ static PetscErrorCode BuildCellTables(Space &s, PetscInt vEnd)
       const PetscInt p = s.element == Element::P1 ? verts[i] : cone[i];
       PetscInt       off;
       PetscCall(PetscSectionGetOffset(section, p, &off));
-      // ForEachBoundaryDof finds a P1 DOF's coordinates by this identity
+      // P1 relies on this identity: Dofs() returns the vertex entries, ForEachBoundaryDof the vertex coordinates
       PetscCheck(s.element != Element::P1 || off == verts[i] - s.vStart, PETSC_COMM_SELF, PETSC_ERR_PLIB, "P1 DOF %d of vertex %d is not numbered in vertex order", (int)off, (int)verts[i]);
-      s.cellDof[c * nb + i]  = off;
+      if (s.element == Element::CR) s.cellDof[c * nb + i] = off;
       s.cellVert[c * nb + i] = verts[i] - s.vStart;
     }
     if (cellSets) PetscCall(DMLabelGetValue(cellSets, cell, &s.cellSet[c]));

@@ -58,7 +58,7 @@ struct Space {
   PetscInt numLocal = 0, numOwned = 0, numGlobal = 0, numContactGlobal = 0, numDirichletGlobal = 0;
   // Per cell only what cannot be looked up cheaply: at 10^7 cells every entry is 40 MB of memory and
   // of page faults in the set-up.
-  std::vector<PetscInt>     cellDof;   // (dim+1) local DOF indices per cell
+  std::vector<PetscInt>     cellDof;   // (dim+1) local DOF indices per cell (CR; P1 DOFs are the cellVert entries)
   std::vector<PetscInt>     cellVert;  // (dim+1) vertices per cell (as v - vStart), vertex k opposite cone face k
   std::vector<PetscReal>    vertX;     // dim coordinates per local vertex (v - vStart)
   std::vector<PetscInt>     cellSet;   // "Cell Sets" value per cell (-1: none); empty if the mesh has no such label
@@ -76,7 +76,9 @@ struct Space {
   PetscInt        NumCells() const { return cEnd - cStart; }
   PetscInt        CellSet(PetscInt c) const { return cellSet.empty() ? -1 : cellSet[c]; }
   PetscInt        Nb() const { return dim + 1; }
-  const PetscInt *Dofs(PetscInt c) const { return &cellDof[c * (dim + 1)]; }
+  // P1 DOF i is vertex vStart + i, so a cell's DOFs are its vertex entries: a tetrahedral mesh has about six
+  // cells per vertex, and a second table would cost 96 bytes per DOF.
+  const PetscInt *Dofs(PetscInt c) const { return &(element == Element::P1 ? cellVert : cellDof)[c * (dim + 1)]; }
   PetscInt        Vertex(PetscInt c, PetscInt k) const { return vStart + cellVert[c * (dim + 1) + k]; } // mesh point
   Coords          X(PetscInt c) const
   {
