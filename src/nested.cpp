@@ -194,8 +194,8 @@ PetscErrorCode SetUpLevel(DM dm, Element element, const Problem &problem, const 
   PetscCall(StagePush(Stage::Setup));
   PetscCall(SpaceCreate(dm, element, problem, level.space));
   PetscCall(StagePop(Stage::Setup));
+  PetscCall(SpaceReleaseMesh(level.space, {})); // assembly, solve and prolongation need the tables only
   PetscCall(AssembleSystem(level.space, problem, assembly, level.sys));
-  PetscCall(SpaceReleaseMesh(level.space, {level.sys.b, level.sys.load, level.sys.uD})); // the level's solve and prolongation need the tables only
   PetscCall(DMCreateGlobalVector(level.space.dm, &level.u));
   PetscCall(VecDuplicate(level.u, &level.lower));
   PetscCall(ContactLowerBound(level.space, problem, level.lower));

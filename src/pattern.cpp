@@ -4,13 +4,12 @@
 
 namespace signorini {
 
-// Global index of every local DOF (ghosts included), through the DM's local-to-global mapping.
+// Global index of every local DOF (ghosts included), through the space's local-to-global mapping.
 static PetscErrorCode GlobalIndices(const Space &space, std::vector<PetscInt> &global)
 {
-  ISLocalToGlobalMapping ltog;
+  ISLocalToGlobalMapping ltog = space.ltog;
   PetscInt               n;
   PetscFunctionBeginUser;
-  PetscCall(DMGetLocalToGlobalMapping(space.dm, &ltog));
   PetscCall(ISLocalToGlobalMappingGetSize(ltog, &n));
   PetscCheck(n == space.numLocal, PETSC_COMM_SELF, PETSC_ERR_PLIB, "local-to-global mapping has %" PetscInt_FMT " entries for %" PetscInt_FMT " local DOFs", n, space.numLocal);
   global.resize(space.numLocal);
@@ -197,7 +196,6 @@ PetscErrorCode ComputeRowCounts(const Space &space, RowCounts &counts)
 PetscErrorCode CreateStiffnessMatrix(const Space &space, Mat *A)
 {
   MPI_Comm               comm = PetscObjectComm((PetscObject)space.dm);
-  ISLocalToGlobalMapping ltog;
   RowCounts              counts;
   static PetscLogEvent   event = 0;
   PetscFunctionBeginUser;
@@ -209,8 +207,7 @@ PetscErrorCode CreateStiffnessMatrix(const Space &space, Mat *A)
   PetscCall(MatSetType(*A, MATAIJ));
   PetscCall(MatSetFromOptions(*A));
   PetscCall(MatXAIJSetPreallocation(*A, 1, counts.diag.data(), counts.offdiag.data(), NULL, NULL));
-  PetscCall(DMGetLocalToGlobalMapping(space.dm, &ltog));
-  PetscCall(MatSetLocalToGlobalMapping(*A, ltog, ltog));
+  PetscCall(MatSetLocalToGlobalMapping(*A, space.ltog, space.ltog));
   PetscCall(MatSetOption(*A, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
   // Symmetric by construction, and the symmetric Dirichlet elimination keeps it so.
   PetscCall(MatSetOption(*A, MAT_SYMMETRIC, PETSC_TRUE));

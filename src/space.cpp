@@ -391,6 +391,8 @@ PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Spa
   PetscCall(ClassifyDofs(s, problem));
   if (problem.HasContact() && !problem.dirichlet.empty()) PetscCall(CheckObstacleMeetsDirichlet(s, problem));
   PetscCall(PetscLogEventEnd(ev[3], 0, 0, 0, 0));
+  PetscCall(DMGetLocalToGlobalMapping(s.dm, &s.ltog));
+  PetscCall(PetscObjectReference((PetscObject)s.ltog));
   PetscFunctionReturn(0);
 }
 
@@ -418,6 +420,7 @@ PetscErrorCode SpaceDestroy(Space &s)
 {
   PetscFunctionBeginUser;
   PetscCall(DMDestroy(&s.dm));
+  PetscCall(ISLocalToGlobalMappingDestroy(&s.ltog));
   s = Space();
   PetscFunctionReturn(0);
 }

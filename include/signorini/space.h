@@ -65,6 +65,7 @@ struct Space {
   std::vector<char>         kindLocal; // DofKind per local DOF (consistent across ranks)
   std::vector<PetscInt>     dirichletOwned, contactOwned; // indices into the owned part of a global Vec
   std::vector<BoundaryFace> boundary;  // faces of all named parts on this rank
+  ISLocalToGlobalMapping    ltog = nullptr; // global index of every local DOF (ghosts included)
 
   // The vertex coordinates of a cell, (dim+1)*dim values; converts to a pointer for the functions that
   // take one (keep the object, not the pointer, beyond one expression).
@@ -135,7 +136,8 @@ PetscErrorCode SpaceDestroy(Space &space);
 // Replaces space.dm, the mesh clone, by a DMShell with the same layout (see layout.h) and moves `vecs`,
 // vectors of the space, onto it, so that the space no longer holds the mesh: once the caller drops its own
 // references, the DMPlex is freed. Everything but the HDF5 output works on the tables and the layout
-// (assembly, solve, KKT, energy, errors, prolongation); call it after AssembleSystem. Collective.
+// (assembly, solve, KKT, energy, errors, prolongation), so it may be called right after SpaceCreate.
+// Collective.
 PetscErrorCode SpaceReleaseMesh(Space &space, std::initializer_list<Vec> vecs);
 // The DM keeps the work vectors of DMGetLocalVector/DMGetGlobalVector after they are restored, for the
 // next caller; at 10^7 DOFs each is 80 MB that should not stay through a solve. Frees them.
