@@ -3,20 +3,22 @@
 #include <petscdmshell.h>
 #include <petscsf.h>
 
+#include <algorithm>
+
 namespace signorini {
 
 namespace {
 struct Layout {
-  PetscSF               sf = nullptr; // leaves: local DOFs; roots: the owned entries of a global vector
   PetscInt              numLocal = 0, numOwned = 0;
-  std::vector<PetscInt> ownedLocal;   // local index of each owned DOF (its own copy among the leaves)
+  std::vector<PetscInt> ownedLocal;     // local index of each owned DOF (its owner's own copy)
+  PetscSF               ghosts = nullptr; // leaves: the local copies of DOFs other ranks own; roots: owned DOFs
 };
 
 PetscErrorCode LayoutDestroy(void *ctx)
 {
   auto *l = static_cast<Layout *>(ctx);
   PetscFunctionBeginUser;
-  PetscCall(PetscSFDestroy(&l->sf));
+  PetscCall(PetscSFDestroy(&l->ghosts));
   delete l;
   PetscFunctionReturn(0);
 }
@@ -54,8 +56,9 @@ PetscErrorCode GlobalToLocal(DM dm, Vec g, InsertMode mode, Vec l)
   PetscCheck(mode == INSERT_VALUES, PetscObjectComm((PetscObject)dm), PETSC_ERR_SUP, "global to local exchange supports INSERT_VALUES only");
   PetscCall(VecGetArrayRead(g, &ga));
   PetscCall(VecGetArray(l, &la));
-  PetscCall(PetscSFBcastBegin(L.sf, MPIU_SCALAR, ga, la, MPI_REPLACE));
-  PetscCall(PetscSFBcastEnd(L.sf, MPIU_SCALAR, ga, la, MPI_REPLACE));
+  PetscCall(PetscSFBcastBegin(L.ghosts, MPIU_SCALAR, ga, la, MPI_REPLACE));
+  for (PetscInt i = 0; i < L.numOwned; ++i) la[L.ownedLocal[i]] = ga[i];
+  PetscCall(PetscSFBcastEnd(L.ghosts, MPIU_SCALAR, ga, la, MPI_REPLACE));
   PetscCall(VecRestoreArray(l, &la));
   PetscCall(VecRestoreArrayRead(g, &ga));
   PetscFunctionReturn(0);
@@ -75,8 +78,9 @@ PetscErrorCode LocalToGlobal(DM dm, Vec l, InsertMode mode, Vec g)
   if (mode == INSERT_VALUES) {
     for (PetscInt i = 0; i < L.numOwned; ++i) ga[i] = la[L.ownedLocal[i]];
   } else {
-    PetscCall(PetscSFReduceBegin(L.sf, MPIU_SCALAR, la, ga, MPIU_SUM));
-    PetscCall(PetscSFReduceEnd(L.sf, MPIU_SCALAR, la, ga, MPIU_SUM));
+    for (PetscInt i = 0; i < L.numOwned; ++i) ga[i] += la[L.ownedLocal[i]];
+    PetscCall(PetscSFReduceBegin(L.ghosts, MPIU_SCALAR, la, ga, MPIU_SUM));
+    PetscCall(PetscSFReduceEnd(L.ghosts, MPIU_SCALAR, la, ga, MPIU_SUM));
   }
   PetscCall(VecRestoreArray(g, &ga));
   PetscCall(VecRestoreArrayRead(l, &la));
@@ -88,33 +92,52 @@ PetscErrorCode Nothing(DM, Vec, InsertMode, Vec) { return 0; }
 
 PetscErrorCode LayoutCreateFromDM(DM dm, DM *layout)
 {
-  MPI_Comm           comm = PetscObjectComm((PetscObject)dm);
-  PetscSF            sf;
-  PetscSection       local, global;
-  PetscInt           nroots, nleaves;
-  const PetscInt    *leaves;
-  const PetscSFNode *remote;
-  PetscMPIInt        rank;
+  MPI_Comm     comm = PetscObjectComm((PetscObject)dm);
+  PetscSection local, global;
+  PetscInt     pStart, pEnd;
+  PetscMPIInt  rank, size;
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_rank(comm, &rank));
-  auto *L = new Layout;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
   PetscCall(DMGetLocalSection(dm, &local));
   PetscCall(DMGetGlobalSection(dm, &global));
+  auto *L = new Layout;
   PetscCall(PetscSectionGetStorageSize(local, &L->numLocal));
   PetscCall(PetscSectionGetConstrainedStorageSize(global, &L->numOwned));
-  PetscCall(DMGetSectionSF(dm, &sf));
-  PetscCall(PetscObjectReference((PetscObject)sf));
-  L->sf = sf;
-  PetscCall(PetscSFGetGraph(sf, &nroots, &nleaves, &leaves, &remote));
+  // The owner of a global index, from the ranges of all ranks; a ghost's root is its owner's offset.
+  std::vector<PetscInt> ranges(size + 1, 0);
+  PetscCallMPI(MPI_Allgather(&L->numOwned, 1, MPIU_INT, ranges.data() + 1, 1, MPIU_INT, comm));
+  for (PetscMPIInt p = 0; p < size; ++p) ranges[p + 1] += ranges[p];
+  const PetscInt           rstart = ranges[rank];
+  std::vector<PetscInt>    leaves;
+  std::vector<PetscSFNode> roots;
   L->ownedLocal.assign(L->numOwned, -1);
-  for (PetscInt i = 0; i < nleaves; ++i)
-    if (remote[i].rank == rank) L->ownedLocal[remote[i].index] = leaves ? leaves[i] : i;
-  bool complete = nroots == L->numOwned;
+  PetscCall(PetscSectionGetChart(local, &pStart, &pEnd));
+  for (PetscInt p = pStart; p < pEnd; ++p) {
+    PetscInt dof, loff, goff;
+    PetscCall(PetscSectionGetDof(local, p, &dof));
+    if (!dof) continue;
+    PetscCall(PetscSectionGetOffset(local, p, &loff));
+    PetscCall(PetscSectionGetOffset(global, p, &goff));
+    for (PetscInt d = 0; d < dof; ++d) {
+      if (goff >= 0) {
+        L->ownedLocal[goff - rstart + d] = loff + d;
+        continue;
+      }
+      const PetscInt    g     = -(goff + 1) + d; // PETSc's encoding of a DOF another rank owns
+      const PetscMPIInt owner = (PetscMPIInt)(std::upper_bound(ranges.begin(), ranges.end(), g) - ranges.begin() - 1);
+      leaves.push_back(loff + d);
+      roots.push_back({owner, g - ranges[owner]});
+    }
+  }
+  bool complete = true;
   for (PetscInt o : L->ownedLocal) complete = complete && o >= 0;
   if (!complete) {
     PetscCall(LayoutDestroy(L));
-    SETERRQ(PETSC_COMM_SELF, PETSC_ERR_PLIB, "the section's star forest does not map every owned DOF to a local copy");
+    SETERRQ(PETSC_COMM_SELF, PETSC_ERR_PLIB, "the global section leaves an owned DOF without a local copy");
   }
+  PetscCall(PetscSFCreate(comm, &L->ghosts));
+  PetscCall(PetscSFSetGraph(L->ghosts, L->numOwned, (PetscInt)leaves.size(), leaves.data(), PETSC_COPY_VALUES, roots.data(), PETSC_COPY_VALUES));
   PetscCall(DMShellCreate(comm, layout));
   PetscCall(DMShellSetContext(*layout, L));
   PetscCall(DMShellSetDestroyContext(*layout, LayoutDestroy));

@@ -101,7 +101,7 @@ static PetscErrorCode Run(MPI_Comm comm)
   if (s.output.file.empty()) {
     // Nothing after this point but the HDF5 output needs the mesh: free it before the assembly and the
     // solve need the memory (a tetrahedral mesh has about 25 points per P1 DOF).
-    PetscCall(SpaceReleaseMesh(space, {}));
+    PetscCall(SpaceReleaseMesh(space));
     PetscCall(DMDestroy(&mesh));
     if (nested) PetscCall(DMDestroy(&levels.dm.back()));
   }

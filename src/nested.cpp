@@ -194,7 +194,7 @@ PetscErrorCode SetUpLevel(DM dm, Element element, const Problem &problem, const 
   PetscCall(StagePush(Stage::Setup));
   PetscCall(SpaceCreate(dm, element, problem, level.space));
   PetscCall(StagePop(Stage::Setup));
-  PetscCall(SpaceReleaseMesh(level.space, {})); // assembly, solve and prolongation need the tables only
+  PetscCall(SpaceReleaseMesh(level.space)); // assembly, solve and prolongation need the tables only
   PetscCall(AssembleSystem(level.space, problem, assembly, level.sys));
   PetscCall(DMCreateGlobalVector(level.space.dm, &level.u));
   PetscCall(VecDuplicate(level.u, &level.lower));

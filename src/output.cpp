@@ -148,8 +148,9 @@ PetscErrorCode WriteSolution(const Space &space, Vec u, const OutputOptions &o)
   }
   PetscCall(CheckAll(comm, problem.empty(), problem));
 
-  PetscCall(PointFieldDM(space.dm, true, &cellDM));
-  PetscCall(PointFieldDM(space.dm, false, &vertDM));
+  PetscCheck(space.mesh, comm, PETSC_ERR_ORDER, "the output needs the space's mesh, which was released");
+  PetscCall(PointFieldDM(space.mesh, true, &cellDM));
+  PetscCall(PointFieldDM(space.mesh, false, &vertDM));
   PetscCall(DMCreateGlobalVector(cellDM, &cellMean));
   PetscCall(DMCreateGlobalVector(vertDM, &vertexAvg));
   PetscCall(PetscObjectSetName((PetscObject)cellMean, "u_cell"));
@@ -162,7 +163,9 @@ PetscErrorCode WriteSolution(const Space &space, Vec u, const OutputOptions &o)
   PetscCall(VecView(vertexAvg, viewer));
   PetscCall(VecView(cellMean, viewer));
   PetscCall(PetscViewerPopFormat(viewer));
-  PetscCall(VecView(u, viewer)); // the raw DOF vector (faces for CR, vertices for P1) under /fields
+  PetscCall(PetscViewerHDF5PushGroup(viewer, "/fields"));
+  PetscCall(VecView(u, viewer)); // the raw DOF vector (faces for CR, vertices for P1)
+  PetscCall(PetscViewerHDF5PopGroup(viewer));
   PetscCall(PetscViewerDestroy(&viewer));
 
   PetscInt nv, nc;

@@ -104,7 +104,7 @@ static PetscErrorCode CreateSection(Space &s, PetscInt vStart, PetscInt vEnd, Pe
 {
   PetscSection section;
   PetscFunctionBeginUser;
-  PetscCall(PetscSectionCreate(PetscObjectComm((PetscObject)s.dm), &section));
+  PetscCall(PetscSectionCreate(PetscObjectComm((PetscObject)s.mesh), &section));
   // The chart covers the points that carry DOFs only, not the whole mesh: the local and the global
   // section keep two integers per point of their chart (2D P1: six mesh points per vertex).
   const PetscInt start = s.element == Element::P1 ? vStart : fStart, end = s.element == Element::P1 ? vEnd : fEnd;
@@ -112,13 +112,18 @@ static PetscErrorCode CreateSection(Space &s, PetscInt vStart, PetscInt vEnd, Pe
   for (PetscInt p = start; p < end; ++p) PetscCall(PetscSectionSetDof(section, p, 1));
   PetscCall(PetscSectionSetUp(section));
   PetscCall(PetscSectionGetStorageSize(section, &s.numLocal));
-  PetscCall(DMSetLocalSection(s.dm, section));
+  // One DOF per chart point and no permutation: the offset of point p is p - start (the cell tables and,
+  // for P1, Dofs() and ForEachBoundaryDof rely on this). The last offset confirms it.
+  PetscInt last = 0;
+  if (end > start) PetscCall(PetscSectionGetOffset(section, end - 1, &last));
+  PetscCheck(s.numLocal == end - start && (end == start || last == end - 1 - start), PETSC_COMM_SELF, PETSC_ERR_PLIB, "the section does not number its points in chart order");
+  PetscCall(DMSetLocalSection(s.mesh, section));
   PetscCall(PetscSectionDestroy(&section));
-  PetscCall(DMSetMatType(s.dm, MATAIJ));
+  PetscCall(DMSetMatType(s.mesh, MATAIJ));
   PetscSection global;
-  PetscCall(DMGetGlobalSection(s.dm, &global));
+  PetscCall(DMGetGlobalSection(s.mesh, &global));
   PetscCall(PetscSectionGetConstrainedStorageSize(global, &s.numOwned));
-  PetscCallMPI(MPI_Allreduce(&s.numOwned, &s.numGlobal, 1, MPIU_INT, MPI_SUM, PetscObjectComm((PetscObject)s.dm)));
+  PetscCallMPI(MPI_Allreduce(&s.numOwned, &s.numGlobal, 1, MPIU_INT, MPI_SUM, PetscObjectComm((PetscObject)s.mesh)));
   PetscFunctionReturn(0);
 }
 
@@ -133,11 +138,13 @@ static PetscErrorCode BuildCellTables(Space &s, PetscInt vEnd)
   std::string        problem;
   PetscFunctionBeginUser;
   const PetscInt nb = s.dim + 1, nc = s.NumCells();
-  PetscCall(DMGetLocalSection(s.dm, &section));
-  PetscCall(DMGetCoordinatesLocal(s.dm, &coords));
-  PetscCall(DMGetCoordinateDM(s.dm, &cdm));
+  PetscCall(DMGetLocalSection(s.mesh, &section));
+  PetscInt dofStart;
+  PetscCall(PetscSectionGetChart(section, &dofStart, NULL));
+  PetscCall(DMGetCoordinatesLocal(s.mesh, &coords));
+  PetscCall(DMGetCoordinateDM(s.mesh, &cdm));
   PetscCall(DMGetLocalSection(cdm, &csec));
-  PetscCall(DMGetLabel(s.dm, "Cell Sets", &cellSets));
+  PetscCall(DMGetLabel(s.mesh, "Cell Sets", &cellSets));
   PetscCall(VecGetArrayRead(coords, &xa));
   s.vertX.resize((vEnd - s.vStart) * s.dim);
   for (PetscInt v = s.vStart; v < vEnd; ++v) {
@@ -153,15 +160,10 @@ static PetscErrorCode BuildCellTables(Space &s, PetscInt vEnd)
     const PetscInt  cell = s.cStart + c;
     const PetscInt *cone;
     PetscInt        verts[4];
-    PetscCall(CellVertices(s.dm, cell, s.dim, verts));
-    PetscCall(DMPlexGetCone(s.dm, cell, &cone));
+    PetscCall(CellVertices(s.mesh, cell, s.dim, verts));
+    PetscCall(DMPlexGetCone(s.mesh, cell, &cone));
     for (PetscInt i = 0; i < nb; ++i) {
-      const PetscInt p = s.element == Element::P1 ? verts[i] : cone[i];
-      PetscInt       off;
-      PetscCall(PetscSectionGetOffset(section, p, &off));
-      // P1 relies on this identity: Dofs() returns the vertex entries, ForEachBoundaryDof the vertex coordinates
-      PetscCheck(s.element != Element::P1 || off == verts[i] - s.vStart, PETSC_COMM_SELF, PETSC_ERR_PLIB, "P1 DOF %d of vertex %d is not numbered in vertex order", (int)off, (int)verts[i]);
-      if (s.element == Element::CR) s.cellDof[c * nb + i] = off;
+      if (s.element == Element::CR) s.cellDof[c * nb + i] = cone[i] - dofStart; // see CreateSection
       s.cellVert[c * nb + i] = verts[i] - s.vStart;
     }
     if (cellSets) PetscCall(DMLabelGetValue(cellSets, cell, &s.cellSet[c]));
@@ -169,7 +171,7 @@ static PetscErrorCode BuildCellTables(Space &s, PetscInt vEnd)
     const Space::Coords X = s.X(c);
     if (!ComputeCellGeometry(s.dim, X, g) && problem.empty()) problem = Format("mesh: cell %d (near (%g, %g)) is degenerate", (int)cell, (double)X[0], (double)X[1]);
   }
-  PetscCall(CheckAll(PetscObjectComm((PetscObject)s.dm), problem.empty(), problem));
+  PetscCall(CheckAll(PetscObjectComm((PetscObject)s.mesh), problem.empty(), problem));
   PetscFunctionReturn(0);
 }
 
@@ -177,19 +179,19 @@ static PetscErrorCode BuildCellTables(Space &s, PetscInt vEnd)
 static std::string PointText(const Space &s, PetscInt p)
 {
   PetscReal measure, x[3] = {0, 0, 0}, n[3];
-  if (DMPlexComputeCellGeometryFVM(s.dm, p, &measure, x, n)) return "?";
+  if (DMPlexComputeCellGeometryFVM(s.mesh, p, &measure, x, n)) return "?";
   return s.dim == 2 ? Format("%g, %g", (double)x[0], (double)x[1]) : Format("%g, %g, %g", (double)x[0], (double)x[1], (double)x[2]);
 }
 
 // Collects the faces of every named part, checking that each part exists and lies on the boundary.
 static PetscErrorCode CollectBoundary(Space &s, const Problem &problem, PetscInt fStart, PetscInt fEnd)
 {
-  MPI_Comm comm = PetscObjectComm((PetscObject)s.dm);
+  MPI_Comm comm = PetscObjectComm((PetscObject)s.mesh);
   DMLabel  faceSets, boundary;
   PetscFunctionBeginUser;
-  PetscCall(DMGetLabel(s.dm, "Face Sets", &faceSets));
+  PetscCall(DMGetLabel(s.mesh, "Face Sets", &faceSets));
   PetscCall(DMLabelCreate(PETSC_COMM_SELF, "boundary", &boundary));
-  PetscCall(DMPlexMarkBoundaryFaces(s.dm, 1, boundary));
+  PetscCall(DMPlexMarkBoundaryFaces(s.mesh, 1, boundary));
   const std::pair<const char *, const std::vector<PetscInt> *> parts[] = {{"-bc_dirichlet", &problem.dirichlet}, {"-bc_neumann", &problem.neumann}, {"-bc_contact", &problem.contact}};
   // Each face carries at most one condition: a face in two named parts (a Gmsh line in two physical
   // groups, say) would get its Neumann integral twice, or be both Dirichlet and contact.
@@ -212,7 +214,7 @@ static PetscErrorCode CollectBoundary(Space &s, const Problem &problem, PetscInt
           PetscInt isBoundary, nsupp;
           const PetscInt *supp, *cone;
           PetscCall(DMLabelGetValue(boundary, f, &isBoundary));
-          PetscCall(DMPlexGetSupportSize(s.dm, f, &nsupp));
+          PetscCall(DMPlexGetSupportSize(s.mesh, f, &nsupp));
           if (isBoundary != 1 || nsupp != 1) {
             if (interior.empty()) interior = Format("option %s: boundary part %d contains interior faces", part.first, (int)value);
             continue;
@@ -222,8 +224,8 @@ static PetscErrorCode CollectBoundary(Space &s, const Problem &problem, PetscInt
             if (overlap.empty()) overlap = Format("option%s %s%s%s: boundary parts %d and %d overlap (they share the face near (%s)); each face may carry one condition", first.first->second.first == part.first ? "" : "s", first.first->second.first, first.first->second.first == part.first ? "" : " and ", first.first->second.first == part.first ? "" : part.first, (int)first.first->second.second, (int)value, PointText(s, f).c_str());
             continue;
           }
-          PetscCall(DMPlexGetSupport(s.dm, f, &supp));
-          PetscCall(DMPlexGetCone(s.dm, supp[0], &cone));
+          PetscCall(DMPlexGetSupport(s.mesh, f, &supp));
+          PetscCall(DMPlexGetCone(s.mesh, supp[0], &cone));
           BoundaryFace bf{supp[0] - s.cStart, -1, value, -1, f};
           for (PetscInt k = 0; k <= s.dim; ++k)
             if (cone[k] == f) {
@@ -289,7 +291,7 @@ static PetscErrorCode ClassifyDofs(Space &s, const Problem &problem)
   PetscCall(VecDestroy(&lflag));
   PetscCall(VecDestroy(&gflag));
   PetscInt counts[2] = {(PetscInt)s.dirichletOwned.size(), (PetscInt)s.contactOwned.size()}, sums[2];
-  PetscCallMPI(MPI_Allreduce(counts, sums, 2, MPIU_INT, MPI_SUM, PetscObjectComm((PetscObject)s.dm)));
+  PetscCallMPI(MPI_Allreduce(counts, sums, 2, MPIU_INT, MPI_SUM, PetscObjectComm((PetscObject)s.mesh)));
   s.numDirichletGlobal = sums[0];
   s.numContactGlobal   = sums[1];
   PetscFunctionReturn(0);
@@ -302,7 +304,7 @@ static PetscErrorCode ClassifyDofs(Space &s, const Problem &problem)
 // through the point SF.
 static PetscErrorCode CheckObstacleMeetsDirichlet(const Space &s, const Problem &problem)
 {
-  MPI_Comm           comm = PetscObjectComm((PetscObject)s.dm);
+  MPI_Comm           comm = PetscObjectComm((PetscObject)s.mesh);
   PetscSF            sf;
   PetscInt           pStart, pEnd, nroots, nleaves, vStart, vEnd;
   const PetscInt    *leaves;
@@ -312,27 +314,27 @@ static PetscErrorCode CheckObstacleMeetsDirichlet(const Space &s, const Problem 
   PetscInt           verts[4];
   std::string        problemText, error;
   PetscFunctionBeginUser;
-  PetscCall(DMPlexGetChart(s.dm, &pStart, &pEnd));
-  PetscCall(DMPlexGetDepthStratum(s.dm, 0, &vStart, &vEnd));
+  PetscCall(DMPlexGetChart(s.mesh, &pStart, &pEnd));
+  PetscCall(DMPlexGetDepthStratum(s.mesh, 0, &vStart, &vEnd));
   std::vector<PetscInt> flags(pEnd - pStart, 0);
   for (const BoundaryFace &bf : s.boundary) {
     const bool dirichlet = std::count(problem.dirichlet.begin(), problem.dirichlet.end(), bf.part) > 0;
     const bool contact   = std::count(problem.contact.begin(), problem.contact.end(), bf.part) > 0;
     if (!dirichlet && !contact) continue;
-    PetscCall(SimplexVertices(s.dm, bf.face, s.dim - 1, verts));
+    PetscCall(SimplexVertices(s.mesh, bf.face, s.dim - 1, verts));
     for (PetscInt i = 0; i < s.dim; ++i) flags[verts[i] - pStart] |= dirichlet ? 1 : 2;
   }
   std::vector<PetscInt> owned(flags);
   std::vector<char>     isLeaf(pEnd - pStart, 0);
-  PetscCall(DMGetPointSF(s.dm, &sf));
+  PetscCall(DMGetPointSF(s.mesh, &sf));
   PetscCall(PetscSFGetGraph(sf, &nroots, &nleaves, &leaves, NULL));
   if (nroots >= 0) {
     PetscCall(PetscSFReduceBegin(sf, MPIU_INT, flags.data(), owned.data(), MPI_BOR));
     PetscCall(PetscSFReduceEnd(sf, MPIU_INT, flags.data(), owned.data(), MPI_BOR));
     for (PetscInt i = 0; i < nleaves; ++i) isLeaf[(leaves ? leaves[i] : i) - pStart] = 1;
   }
-  PetscCall(DMGetCoordinatesLocal(s.dm, &coords));
-  PetscCall(DMGetCoordinateSection(s.dm, &csec));
+  PetscCall(DMGetCoordinatesLocal(s.mesh, &coords));
+  PetscCall(DMGetCoordinateSection(s.mesh, &csec));
   PetscCall(VecGetArrayRead(coords, &xa));
   for (PetscInt v = vStart; v < vEnd && problemText.empty(); ++v) {
     if (owned[v - pStart] != 3 || isLeaf[v - pStart]) continue;
@@ -369,17 +371,18 @@ PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Spa
   PetscLogEvent ev[4];
   PetscFunctionBeginUser;
   PetscCall(SpaceEvents(ev));
-  PetscCall(DMClone(mesh, &s.dm));
-  PetscCall(PetscObjectSetName((PetscObject)s.dm, "mesh"));
+  PetscCall(DMClone(mesh, &s.mesh));
+  PetscCall(PetscObjectSetName((PetscObject)s.mesh, "mesh"));
   s.element = element;
-  PetscCall(DMGetDimension(s.dm, &s.dim));
+  PetscCall(DMGetDimension(s.mesh, &s.dim));
   PetscCheck(s.dim == 2 || s.dim == 3, PetscObjectComm((PetscObject)mesh), PETSC_ERR_SUP, "only 2D and 3D simplex meshes are supported");
-  PetscCall(DMPlexGetDepthStratum(s.dm, 0, &vStart, &vEnd));
-  PetscCall(DMPlexGetHeightStratum(s.dm, 1, &fStart, &fEnd));
-  PetscCall(DMPlexGetHeightStratum(s.dm, 0, &s.cStart, &s.cEnd));
+  PetscCall(DMPlexGetDepthStratum(s.mesh, 0, &vStart, &vEnd));
+  PetscCall(DMPlexGetHeightStratum(s.mesh, 1, &fStart, &fEnd));
+  PetscCall(DMPlexGetHeightStratum(s.mesh, 0, &s.cStart, &s.cEnd));
   s.vStart = vStart;
   PetscCall(PetscLogEventBegin(ev[0], 0, 0, 0, 0));
   PetscCall(CreateSection(s, vStart, vEnd, fStart, fEnd));
+  PetscCall(LayoutCreateFromDM(s.mesh, &s.dm));
   PetscCall(PetscLogEventEnd(ev[0], 0, 0, 0, 0));
   PetscCall(PetscLogEventBegin(ev[1], 0, 0, 0, 0));
   PetscCall(BuildCellTables(s, vEnd));
@@ -391,7 +394,7 @@ PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Spa
   PetscCall(ClassifyDofs(s, problem));
   if (problem.HasContact() && !problem.dirichlet.empty()) PetscCall(CheckObstacleMeetsDirichlet(s, problem));
   PetscCall(PetscLogEventEnd(ev[3], 0, 0, 0, 0));
-  PetscCall(DMGetLocalToGlobalMapping(s.dm, &s.ltog));
+  PetscCall(DMGetLocalToGlobalMapping(s.mesh, &s.ltog));
   PetscCall(PetscObjectReference((PetscObject)s.ltog));
   PetscFunctionReturn(0);
 }
@@ -404,21 +407,17 @@ PetscErrorCode SpaceReleaseWorkVectors(const Space &s)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode SpaceReleaseMesh(Space &s, std::initializer_list<Vec> vecs)
+PetscErrorCode SpaceReleaseMesh(Space &s)
 {
-  DM layout;
   PetscFunctionBeginUser;
-  PetscCall(LayoutCreateFromDM(s.dm, &layout));
-  for (Vec v : vecs)
-    if (v) PetscCall(VecSetDM(v, layout));
-  PetscCall(DMDestroy(&s.dm));
-  s.dm = layout;
+  PetscCall(DMDestroy(&s.mesh));
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode SpaceDestroy(Space &s)
 {
   PetscFunctionBeginUser;
+  PetscCall(DMDestroy(&s.mesh));
   PetscCall(DMDestroy(&s.dm));
   PetscCall(ISLocalToGlobalMappingDestroy(&s.ltog));
   s = Space();

@@ -210,10 +210,10 @@ static PetscErrorCode TestSpace(unit::Checker &ck, const SpaceCase &sc)
   // DOF -> mesh point, from the space's own section.
   PetscSection sec;
   PetscInt     pStart, pEnd, vStart, vEnd, fStart, fEnd;
-  PetscCall(DMGetLocalSection(space.dm, &sec));
+  PetscCall(DMGetLocalSection(space.mesh, &sec));
   PetscCall(PetscSectionGetChart(sec, &pStart, &pEnd));
-  PetscCall(DMPlexGetDepthStratum(space.dm, 0, &vStart, &vEnd));
-  PetscCall(DMPlexGetHeightStratum(space.dm, 1, &fStart, &fEnd));
+  PetscCall(DMPlexGetDepthStratum(space.mesh, 0, &vStart, &vEnd));
+  PetscCall(DMPlexGetHeightStratum(space.mesh, 1, &fStart, &fEnd));
   std::map<PetscInt, PetscInt> pointOf;
   for (PetscInt p = pStart; p < pEnd; ++p) {
     PetscInt ndof, off;
@@ -231,10 +231,10 @@ static PetscErrorCode TestSpace(unit::Checker &ck, const SpaceCase &sc)
   std::vector<std::array<double, 3>> cellV, faceV;
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
     const PetscInt cell = space.cStart + c;
-    PetscCall(unit::PointVertices(space.dm, cell, cellV));
+    PetscCall(unit::PointVertices(space.mesh, cell, cellV));
     // The space's vertex table holds this cell's vertices, vertex k the one not on cone face k.
     const PetscInt *tcone;
-    PetscCall(DMPlexGetCone(space.dm, cell, &tcone));
+    PetscCall(DMPlexGetCone(space.mesh, cell, &tcone));
     for (PetscInt k = 0; k < nb; ++k) {
       bool found = false;
       for (const auto &v : cellV) {
@@ -242,7 +242,7 @@ static PetscErrorCode TestSpace(unit::Checker &ck, const SpaceCase &sc)
         for (PetscInt d = 0; d < dim; ++d) e = std::fmax(e, std::fabs(v[d] - space.X(c)[k * dim + d]));
         found = found || e == 0;
       }
-      PetscCall(unit::PointVertices(space.dm, tcone[k], faceV));
+      PetscCall(unit::PointVertices(space.mesh, tcone[k], faceV));
       for (const auto &v : faceV) {
         double e = 0;
         for (PetscInt d = 0; d < dim; ++d) e = std::fmax(e, std::fabs(v[d] - space.X(c)[k * dim + d]));
@@ -264,7 +264,7 @@ static PetscErrorCode TestSpace(unit::Checker &ck, const SpaceCase &sc)
       }
     }
     const PetscInt *cone;
-    PetscCall(DMPlexGetCone(space.dm, cell, &cone));
+    PetscCall(DMPlexGetCone(space.mesh, cell, &cone));
 
     // For each DOF i of the cell: its mesh point, the point where phi_i must be 1, and the face F_i with
     // |F_i| n_i = -d |T| grad lambda (face of the DOF for CR, face opposite the vertex for P1).
@@ -276,9 +276,9 @@ static PetscErrorCode TestSpace(unit::Checker &ck, const SpaceCase &sc)
         sc.element == Element::CR ? std::find(cone, cone + nb, p) != cone + nb : (p >= vStart && p < vEnd && [&] {
           PetscInt *cl = nullptr, n;
           bool      in = false;
-          DMPlexGetTransitiveClosure(space.dm, cell, PETSC_TRUE, &n, &cl);
+          DMPlexGetTransitiveClosure(space.mesh, cell, PETSC_TRUE, &n, &cl);
           for (PetscInt j = 0; j < n; ++j) in = in || cl[2 * j] == p;
-          DMPlexRestoreTransitiveClosure(space.dm, cell, PETSC_TRUE, &n, &cl);
+          DMPlexRestoreTransitiveClosure(space.mesh, cell, PETSC_TRUE, &n, &cl);
           return in;
         }());
       if (!inCell && pointsOk) {
@@ -286,7 +286,7 @@ static PetscErrorCode TestSpace(unit::Checker &ck, const SpaceCase &sc)
         pointsMsg = Format("cell %d DOF %d (offset %d) is point %d, not a %s of the cell", (int)c, (int)i, (int)dof, (int)p, sc.element == Element::CR ? "face" : "vertex");
       }
       if (!inCell) continue;
-      PetscCall(unit::PointVertices(space.dm, p, faceV));
+      PetscCall(unit::PointVertices(space.mesh, p, faceV));
       for (PetscInt d = 0; d < dim; ++d) {
         where[i][d] = 0;
         for (const auto &v : faceV) where[i][d] += v[d] / faceV.size();
@@ -351,7 +351,7 @@ static PetscErrorCode TestSpace(unit::Checker &ck, const SpaceCase &sc)
   PetscInt    nContact = 0, nDirichlet = 0;
   for (PetscInt i = 0; i < space.numLocal; ++i) {
     std::vector<std::array<double, 3>> pv;
-    PetscCall(unit::PointVertices(space.dm, pointOf[i], pv));
+    PetscCall(unit::PointVertices(space.mesh, pointOf[i], pv));
     bool onBottom = true, onDir = true;
     for (const auto &v : pv) {
       onBottom = onBottom && v[dim - 1] == sc.mesh.lower[dim - 1];

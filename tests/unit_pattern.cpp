@@ -46,7 +46,7 @@ static PetscErrorCode ReferenceMatrix(const Space &space, const System &sys, Mat
   PetscReal      Ke[16];
   PetscInt       rstart;
   PetscFunctionBeginUser;
-  PetscCall(DMCreateMatrix(space.dm, B));
+  PetscCall(DMCreateMatrix(space.mesh, B));
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
     CellGeometry g;
     ComputeCellGeometry(space.dim, space.X(c), g);

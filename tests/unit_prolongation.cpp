@@ -305,8 +305,8 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
   {
     PetscSection gs, ls;
     PetscInt     pStart, pEnd, rstart;
-    PetscCall(DMGetGlobalSection(fine.dm, &gs));
-    PetscCall(DMGetLocalSection(fine.dm, &ls));
+    PetscCall(DMGetGlobalSection(fine.mesh, &gs));
+    PetscCall(DMGetLocalSection(fine.mesh, &ls));
     PetscCall(PetscSectionGetChart(ls, &pStart, &pEnd));
     PetscCall(VecGetOwnershipRange(uh, &rstart, NULL));
     for (PetscInt q = pStart; q < pEnd; ++q) {

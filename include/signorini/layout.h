@@ -1,10 +1,11 @@
 // The layout of a space's DOFs without the mesh: a DMShell that creates the space's local and global
 // vectors and exchanges values between them (DMGlobalToLocal, DMLocalToGlobal with INSERT_VALUES or
-// ADD_VALUES) exactly as the DMPlex with the space's section does, through the same star forest.
+// ADD_VALUES) exactly as the DMPlex with the space's section does.
 //
-// Once a space's tables are built, the solve and everything measured after it (KKT residuals, energy,
-// errors, prolongation to the next level) need nothing else from the mesh; the distributed DMPlex, about
-// a sixth of the memory at the solve's peak, can then be freed (SpaceReleaseMesh).
+// Built from the local and global sections alone: it keeps the local index of every owned DOF and a star
+// forest of the ghost DOFs only (the local copies of DOFs another rank owns), so on one rank it holds no
+// forest at all, where the section's star forest of the DMPlex lists every local DOF. With it, the space
+// needs the mesh only while its tables are built (SpaceReleaseMesh).
 #pragma once
 
 #include "signorini/common.h"
@@ -12,8 +13,7 @@
 namespace signorini {
 
 // A DMShell with the local and global layout and the local/global exchange of `dm`, a DM with a local
-// section whose DOFs are one per point (the space's DMPlex clone). Keeps only the section's star forest
-// and, for INSERT_VALUES into a global vector, the local index of each owned DOF. Collective.
+// section (the space's DMPlex clone). Collective.
 PetscErrorCode LayoutCreateFromDM(DM dm, DM *layout);
 
 } // namespace signorini

@@ -1,6 +1,7 @@
 // The discrete space: conforming P1 (one DOF per vertex) or Crouzeix-Raviart (one DOF per face, i.e. per
 // height-1 point), laid out by a PetscSection on a clone of the mesh DM, with the DOFs on Gamma_D and on
-// Gamma_C classified.
+// Gamma_C classified. Its vectors and their exchange go through a layout DM that needs no mesh (layout.h),
+// so the mesh can be freed once the tables are built (SpaceReleaseMesh).
 //
 // Both elements are described through barycentric coordinates lambda_0..lambda_d of a cell, so one code
 // path serves triangles and tetrahedra. The cell tables list a cell's vertices so that vertex k is the one
@@ -13,8 +14,6 @@
 #include "signorini/problem.h"
 
 #include <petscdmplex.h>
-
-#include <initializer_list>
 
 namespace signorini {
 
@@ -50,9 +49,8 @@ struct BoundaryFace {
 enum DofKind : char { kFree = 0, kDirichlet = 1, kContact = 2 };
 
 struct Space {
-  // The DOF layout: a clone of the mesh DM carrying the local section of this space, or, after
-  // SpaceReleaseMesh, a DMShell with the same local and global vectors and exchange between them.
-  DM       dm = nullptr;
+  DM       mesh = nullptr; // clone of the mesh DM carrying this space's local section; null once released
+  DM       dm   = nullptr; // the DOF layout: creates the local and global vectors, exchanges between them
   Element  element = Element::CR;
   PetscInt dim = 2, cStart = 0, cEnd = 0, vStart = 0;
   PetscInt numLocal = 0, numOwned = 0, numGlobal = 0, numContactGlobal = 0, numDirichletGlobal = 0;
@@ -133,12 +131,10 @@ PetscErrorCode ElementFromCommandLine(MPI_Comm comm, Element &e);
 // and that psi <= u_D where Gamma_D and Gamma_C meet (otherwise no u in H^1 satisfies both).
 PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Space &space);
 PetscErrorCode SpaceDestroy(Space &space);
-// Replaces space.dm, the mesh clone, by a DMShell with the same layout (see layout.h) and moves `vecs`,
-// vectors of the space, onto it, so that the space no longer holds the mesh: once the caller drops its own
-// references, the DMPlex is freed. Everything but the HDF5 output works on the tables and the layout
-// (assembly, solve, KKT, energy, errors, prolongation), so it may be called right after SpaceCreate.
-// Collective.
-PetscErrorCode SpaceReleaseMesh(Space &space, std::initializer_list<Vec> vecs);
+// Drops the space's mesh clone, so that once the caller drops its own references the DMPlex is freed.
+// Everything but the HDF5 output works on the tables and the layout (assembly, solve, KKT, energy, errors,
+// prolongation), so it may be called right after SpaceCreate.
+PetscErrorCode SpaceReleaseMesh(Space &space);
 // The DM keeps the work vectors of DMGetLocalVector/DMGetGlobalVector after they are restored, for the
 // next caller; at 10^7 DOFs each is 80 MB that should not stay through a solve. Frees them.
 PetscErrorCode SpaceReleaseWorkVectors(const Space &space);
