@@ -15,7 +15,7 @@ PetscErrorCode OutputOptionsFromCommandLine(MPI_Comm comm, OutputOptions &o)
   char file[PETSC_MAX_PATH_LEN] = "";
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Output", "signorini");
-  PetscCall(PetscOptionsString("-output", "Write mesh and solution to FILE.h5 (HDF5) and FILE.xmf (XDMF for ParaView)", "", file, file, sizeof file, NULL));
+  PetscCall(PetscOptionsString("-output", "Write mesh and solution to FILE.h5 (HDF5) and FILE.xmf (XDMF for ParaView); the mesh then stays in memory through the solve", "", file, file, sizeof file, NULL));
   PetscOptionsEnd();
   o.file = file;
   if (!o.file.empty() && (o.file.size() < 4 || o.file.substr(o.file.size() - 3) != ".h5")) SIGNORINI_INPUT_ERROR(comm, "option -output: '%s' must end in .h5", o.file.c_str());
