@@ -1,4 +1,5 @@
 #include "signorini/output.h"
+#include "signorini/layout.h"
 #include "signorini/mesh.h"
 #include "signorini/report.h"
 #include "signorini/stages.h"
@@ -15,7 +16,7 @@ PetscErrorCode OutputOptionsFromCommandLine(MPI_Comm comm, OutputOptions &o)
   char file[PETSC_MAX_PATH_LEN] = "";
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Output", "signorini");
-  PetscCall(PetscOptionsString("-output", "Write mesh and solution to FILE.h5 (HDF5) and FILE.xmf (XDMF for ParaView); the mesh then stays in memory through the solve", "", file, file, sizeof file, NULL));
+  PetscCall(PetscOptionsString("-output", "Write mesh and solution to FILE.h5 (HDF5) and FILE.xmf (XDMF for ParaView)", "", file, file, sizeof file, NULL));
   PetscOptionsEnd();
   o.file = file;
   if (!o.file.empty() && (o.file.size() < 4 || o.file.substr(o.file.size() - 3) != ".h5")) SIGNORINI_INPUT_ERROR(comm, "option -output: '%s' must end in .h5", o.file.c_str());
@@ -47,7 +48,9 @@ static PetscErrorCode PointFieldDM(DM mesh, bool cells, DM *dm)
   PetscFunctionReturn(0);
 }
 
-// Cell means and vertex averages of the cellwise linear function u_h (for P1 the vertex average is u_h).
+// Cell means and vertex averages of the cellwise linear function u_h (for P1 the vertex average is u_h),
+// into vectors of the cell and vertex layouts, whose local entry of cell c and vertex v are c and v - vStart
+// (checked by OutputBegin).
 static PetscErrorCode DerivedFields(const Space &space, Vec u, DM cellDM, DM vertDM, Vec cellMean, Vec vertexAvg)
 {
   Vec                uloc, vsum, vcnt, vsumG, vcntG, cloc;
@@ -65,23 +68,17 @@ static PetscErrorCode DerivedFields(const Space &space, Vec u, DM cellDM, DM ver
   PetscCall(VecGetArray(cloc, &cm));
   PetscCall(VecGetArray(vsum, &vs));
   PetscCall(VecGetArray(vcnt, &vc));
-  PetscSection vsec, csec;
-  PetscCall(DMGetLocalSection(vertDM, &vsec));
-  PetscCall(DMGetLocalSection(cellDM, &csec));
   const PetscInt nb = space.Nb();
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
     PetscReal centroid[4], mean = 0;
     for (PetscInt k = 0; k < nb; ++k) centroid[k] = 1.0 / nb;
     for (PetscInt i = 0; i < nb; ++i) mean += PetscRealPart(ua[space.Dofs(c)[i]]) * space.BasisValue(c, i, centroid);
-    PetscInt coff;
-    PetscCall(PetscSectionGetOffset(csec, space.cStart + c, &coff));
-    cm[coff] = mean;
+    cm[c] = mean;
     for (PetscInt k = 0; k < nb; ++k) {
       PetscReal lambda[4] = {0, 0, 0, 0}, val = 0;
       lambda[k]           = 1;
       for (PetscInt i = 0; i < nb; ++i) val += PetscRealPart(ua[space.Dofs(c)[i]]) * space.BasisValue(c, i, lambda);
-      PetscInt off;
-      PetscCall(PetscSectionGetOffset(vsec, space.Vertex(c, k), &off));
+      const PetscInt off = space.Vertex(c, k) - space.vStart;
       vs[off] += val;
       vc[off] += 1;
     }
@@ -129,58 +126,111 @@ static std::string Xdmf(const std::string &h5, PetscInt dim, PetscInt nv, PetscI
   return x.str();
 }
 
-PetscErrorCode WriteSolution(const Space &space, Vec u, const OutputOptions &o)
+Output::~Output()
+{
+  // A run that ended between OutputBegin and OutputEnd leaves no half-written file behind.
+  if (pending && rank == 0) std::remove((opts.file + ".tmp").c_str());
+  DMDestroy(&cellLayout);
+  DMDestroy(&vertLayout);
+}
+
+// The layout of a point field whose points [start, end) are contiguous and carry one DOF each: the local
+// entry of point p is p - start, which DerivedFields relies on.
+static PetscErrorCode PointFieldLayout(DM field, bool cells, DM *layout, PetscInt *global)
+{
+  PetscSection s;
+  PetscInt     start, end, last = 0, n, owned;
+  PetscFunctionBeginUser;
+  if (cells) PetscCall(DMPlexGetHeightStratum(field, 0, &start, &end));
+  else PetscCall(DMPlexGetDepthStratum(field, 0, &start, &end));
+  PetscCall(DMGetLocalSection(field, &s));
+  PetscCall(PetscSectionGetStorageSize(s, &n));
+  if (end > start) PetscCall(PetscSectionGetOffset(s, end - 1, &last));
+  PetscCheck(n == end - start && (end == start || last == end - 1 - start), PETSC_COMM_SELF, PETSC_ERR_PLIB, "the output section does not number its points in order");
+  PetscCall(LayoutCreateFromDM(field, layout));
+  PetscCall(DMGetGlobalSection(field, &s));
+  PetscCall(PetscSectionGetConstrainedStorageSize(s, &owned));
+  PetscCallMPI(MPI_Allreduce(&owned, global, 1, MPIU_INT, MPI_SUM, PetscObjectComm((PetscObject)field)));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode OutputBegin(const Space &space, const OutputOptions &o, Output &out)
 {
   MPI_Comm    comm = PetscObjectComm((PetscObject)space.dm);
-  PetscMPIInt rank;
   DM          cellDM, vertDM;
-  Vec         cellMean, vertexAvg;
   PetscViewer viewer;
-  std::string problem;
   PetscFunctionBeginUser;
-  PetscCall(StagePush(Stage::Output));
-  PetscCallMPI(MPI_Comm_rank(comm, &rank));
-  const std::string tmp = o.file + ".tmp";
-  if (rank == 0) {
-    FILE *fp = std::fopen(tmp.c_str(), "w");
-    if (!fp) problem = Format("option -output: '%s' cannot be written", o.file.c_str());
-    else std::fclose(fp);
-  }
-  PetscCall(CheckAll(comm, problem.empty(), problem));
-
   PetscCheck(space.mesh, comm, PETSC_ERR_ORDER, "the output needs the space's mesh, which was released");
+  PetscCall(StagePush(Stage::Output));
+  PetscCallMPI(MPI_Comm_rank(comm, &out.rank));
+  out.opts    = o;
+  out.dim     = space.dim;
+  out.pending = true; // from here on the destructor removes FILE.h5.tmp unless OutputEnd renamed it
   PetscCall(PointFieldDM(space.mesh, true, &cellDM));
   PetscCall(PointFieldDM(space.mesh, false, &vertDM));
-  PetscCall(DMCreateGlobalVector(cellDM, &cellMean));
-  PetscCall(DMCreateGlobalVector(vertDM, &vertexAvg));
-  PetscCall(PetscObjectSetName((PetscObject)cellMean, "u_cell"));
-  PetscCall(PetscObjectSetName((PetscObject)vertexAvg, "u_vertex"));
-  PetscCall(DerivedFields(space, u, cellDM, vertDM, cellMean, vertexAvg));
-
-  PetscCall(PetscViewerHDF5Open(comm, tmp.c_str(), FILE_MODE_WRITE, &viewer));
+  PetscCall(PetscViewerHDF5Open(comm, (o.file + ".tmp").c_str(), FILE_MODE_WRITE, &viewer));
   PetscCall(PetscViewerPushFormat(viewer, PETSC_VIEWER_HDF5_XDMF));
-  PetscCall(DMView(vertDM, viewer));
-  PetscCall(VecView(vertexAvg, viewer));
-  PetscCall(VecView(cellMean, viewer));
+  PetscCall(DMView(vertDM, viewer)); // /geometry/vertices and /viz/topology/cells
   PetscCall(PetscViewerPopFormat(viewer));
-  PetscCall(PetscViewerHDF5PushGroup(viewer, "/fields"));
-  PetscCall(VecView(u, viewer)); // the raw DOF vector (faces for CR, vertices for P1)
-  PetscCall(PetscViewerHDF5PopGroup(viewer));
   PetscCall(PetscViewerDestroy(&viewer));
-
-  PetscInt nv, nc;
-  PetscCall(VecGetSize(vertexAvg, &nv));
-  PetscCall(VecGetSize(cellMean, &nc));
-  if (rank == 0 && std::rename(tmp.c_str(), o.file.c_str()) != 0) problem = Format("option -output: renaming '%s' failed", tmp.c_str());
-  PetscCall(CheckAll(comm, problem.empty(), problem));
-  std::string xmf = o.file.substr(0, o.file.size() - 3) + ".xmf";
-  PetscCall(WriteFileAtomically(comm, xmf, Xdmf(BaseName(o.file), space.dim, nv, nc, "u_vertex_value", "u_cell_value")));
-
-  PetscCall(VecDestroy(&cellMean));
-  PetscCall(VecDestroy(&vertexAvg));
+  PetscCall(PointFieldLayout(cellDM, true, &out.cellLayout, &out.nc));
+  PetscCall(PointFieldLayout(vertDM, false, &out.vertLayout, &out.nv));
   PetscCall(DMDestroy(&cellDM));
   PetscCall(DMDestroy(&vertDM));
   PetscCall(StagePop(Stage::Output));
+  PetscFunctionReturn(0);
+}
+
+// Writes vector v, named `name`, into `group` of the open file.
+static PetscErrorCode ViewInGroup(PetscViewer viewer, const char *group, Vec v, const char *name)
+{
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectSetName((PetscObject)v, name));
+  PetscCall(PetscViewerHDF5PushGroup(viewer, group));
+  PetscCall(VecView(v, viewer));
+  PetscCall(PetscViewerHDF5PopGroup(viewer));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode OutputEnd(const Space &space, Vec u, Output &out)
+{
+  MPI_Comm    comm = PetscObjectComm((PetscObject)space.dm);
+  Vec         cellMean, vertexAvg;
+  PetscViewer viewer;
+  std::string problem;
+  const char *uName;
+  PetscFunctionBeginUser;
+  PetscCheck(out.pending, comm, PETSC_ERR_ORDER, "OutputEnd without OutputBegin");
+  PetscCall(StagePush(Stage::Output));
+  PetscCall(DMCreateGlobalVector(out.cellLayout, &cellMean));
+  PetscCall(DMCreateGlobalVector(out.vertLayout, &vertexAvg));
+  PetscCall(DerivedFields(space, u, out.cellLayout, out.vertLayout, cellMean, vertexAvg));
+  const std::string tmp = out.opts.file + ".tmp";
+  PetscCall(PetscViewerHDF5Open(comm, tmp.c_str(), FILE_MODE_APPEND, &viewer));
+  PetscCall(ViewInGroup(viewer, "/vertex_fields", vertexAvg, "u_vertex_value"));
+  PetscCall(ViewInGroup(viewer, "/cell_fields", cellMean, "u_cell_value"));
+  PetscCall(PetscObjectGetName((PetscObject)u, &uName));
+  const std::string name = uName;
+  PetscCall(ViewInGroup(viewer, "/fields", u, name.c_str())); // the raw DOF vector (faces for CR, vertices for P1)
+  PetscCall(PetscViewerDestroy(&viewer));
+  PetscCall(VecDestroy(&cellMean));
+  PetscCall(VecDestroy(&vertexAvg));
+
+  if (out.rank == 0 && std::rename(tmp.c_str(), out.opts.file.c_str()) != 0) problem = Format("option -output: renaming '%s' failed", tmp.c_str());
+  PetscCall(CheckAll(comm, problem.empty(), problem));
+  out.pending         = false;
+  const std::string h5 = out.opts.file, xmf = h5.substr(0, h5.size() - 3) + ".xmf";
+  PetscCall(WriteFileAtomically(comm, xmf, Xdmf(BaseName(h5), out.dim, out.nv, out.nc, "u_vertex_value", "u_cell_value")));
+  PetscCall(StagePop(Stage::Output));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode WriteSolution(const Space &space, Vec u, const OutputOptions &o)
+{
+  Output out;
+  PetscFunctionBeginUser;
+  PetscCall(OutputBegin(space, o, out));
+  PetscCall(OutputEnd(space, u, out));
   PetscFunctionReturn(0);
 }
 

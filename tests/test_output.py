@@ -1,9 +1,10 @@
 """-output writes HDF5 + XDMF that a viewer can open: the XDMF parses and points at datasets that exist with
 the stated shapes, and for a linear exact solution the vertex field equals u at the vertices and the cell
 field equals u at the cell centroids (comparison with the exact solution), for both elements, on 1 and 2
-ranks. No temporary file is left behind. Without -output the mesh is freed before the solve (the space
-keeps only its tables and DOF layout); the same run with and without -output gives the same solve
-(invariant: one discrete problem, so the same energy, KKT residuals and iterations)."""
+ranks. No temporary file is left behind. The mesh goes into the file before the solve (and is freed
+then), the fields after it: the same run with and without -output gives the same solve (invariant: one
+discrete problem, so the same energy, KKT residuals and iterations), and a run whose solve fails after the
+mesh was written leaves no file at all."""
 import os
 import tempfile
 import xml.etree.ElementTree as ET
@@ -48,4 +49,9 @@ for space in ["p1", "cr"]:
             c.check(np.max(np.abs(uv - exact(X))) < 1e-10, "%s: vertex field = u at the vertices" % tag)
             centroids = X[cells].mean(axis=1)
             c.check(np.max(np.abs(uc - exact(centroids))) < 1e-10, "%s: cell field = u at the centroids" % tag)
+for ranks in [1, 2]:
+    with tempfile.TemporaryDirectory() as tmp:
+        rc = run(base + ["-space", "cr", "-snes_max_it", "1", "-output", os.path.join(tmp, "sol.h5")], ranks=ranks, check=False)[0]
+        left = sorted(os.listdir(tmp))
+        c.check(rc == 1 and not left, "failed solve on %d rank(s): exit status %d, files left %s" % (ranks, rc, left))
 c.done()
