@@ -90,6 +90,16 @@ PetscErrorCode LocalToGlobal(DM dm, Vec l, InsertMode mode, Vec g)
 PetscErrorCode Nothing(DM, Vec, InsertMode, Vec) { return 0; }
 } // namespace
 
+PetscErrorCode LayoutCheckPointOrder(PetscSection s, PetscInt start, PetscInt end)
+{
+  PetscInt n, last = 0;
+  PetscFunctionBeginUser;
+  PetscCall(PetscSectionGetStorageSize(s, &n));
+  if (end > start) PetscCall(PetscSectionGetOffset(s, end - 1, &last));
+  PetscCheck(n == end - start && (end == start || last == end - 1 - start), PETSC_COMM_SELF, PETSC_ERR_PLIB, "the section does not number its points [%" PetscInt_FMT ", %" PetscInt_FMT ") in order, one DOF each", start, end);
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode LayoutCreateFromDM(DM dm, DM *layout)
 {
   MPI_Comm     comm = PetscObjectComm((PetscObject)dm);

@@ -139,14 +139,12 @@ Output::~Output()
 static PetscErrorCode PointFieldLayout(DM field, bool cells, DM *layout, PetscInt *global)
 {
   PetscSection s;
-  PetscInt     start, end, last = 0, n, owned;
+  PetscInt     start, end, owned;
   PetscFunctionBeginUser;
   if (cells) PetscCall(DMPlexGetHeightStratum(field, 0, &start, &end));
   else PetscCall(DMPlexGetDepthStratum(field, 0, &start, &end));
   PetscCall(DMGetLocalSection(field, &s));
-  PetscCall(PetscSectionGetStorageSize(s, &n));
-  if (end > start) PetscCall(PetscSectionGetOffset(s, end - 1, &last));
-  PetscCheck(n == end - start && (end == start || last == end - 1 - start), PETSC_COMM_SELF, PETSC_ERR_PLIB, "the output section does not number its points in order");
+  PetscCall(LayoutCheckPointOrder(s, start, end));
   PetscCall(LayoutCreateFromDM(field, layout));
   PetscCall(DMGetGlobalSection(field, &s));
   PetscCall(PetscSectionGetConstrainedStorageSize(s, &owned));
@@ -181,11 +179,10 @@ PetscErrorCode OutputBegin(const Space &space, const OutputOptions &o, Output &o
   PetscFunctionReturn(0);
 }
 
-// Writes vector v, named `name`, into `group` of the open file.
-static PetscErrorCode ViewInGroup(PetscViewer viewer, const char *group, Vec v, const char *name)
+// Writes vector v into `group` of the open file, as a dataset named like v.
+static PetscErrorCode ViewInGroup(PetscViewer viewer, const char *group, Vec v)
 {
   PetscFunctionBeginUser;
-  PetscCall(PetscObjectSetName((PetscObject)v, name));
   PetscCall(PetscViewerHDF5PushGroup(viewer, group));
   PetscCall(VecView(v, viewer));
   PetscCall(PetscViewerHDF5PopGroup(viewer));
@@ -198,20 +195,19 @@ PetscErrorCode OutputEnd(const Space &space, Vec u, Output &out)
   Vec         cellMean, vertexAvg;
   PetscViewer viewer;
   std::string problem;
-  const char *uName;
   PetscFunctionBeginUser;
   PetscCheck(out.pending, comm, PETSC_ERR_ORDER, "OutputEnd without OutputBegin");
   PetscCall(StagePush(Stage::Output));
   PetscCall(DMCreateGlobalVector(out.cellLayout, &cellMean));
   PetscCall(DMCreateGlobalVector(out.vertLayout, &vertexAvg));
+  PetscCall(PetscObjectSetName((PetscObject)cellMean, "u_cell_value")); // the names the XDMF file refers to
+  PetscCall(PetscObjectSetName((PetscObject)vertexAvg, "u_vertex_value"));
   PetscCall(DerivedFields(space, u, out.cellLayout, out.vertLayout, cellMean, vertexAvg));
   const std::string tmp = out.opts.file + ".tmp";
   PetscCall(PetscViewerHDF5Open(comm, tmp.c_str(), FILE_MODE_APPEND, &viewer));
-  PetscCall(ViewInGroup(viewer, "/vertex_fields", vertexAvg, "u_vertex_value"));
-  PetscCall(ViewInGroup(viewer, "/cell_fields", cellMean, "u_cell_value"));
-  PetscCall(PetscObjectGetName((PetscObject)u, &uName));
-  const std::string name = uName;
-  PetscCall(ViewInGroup(viewer, "/fields", u, name.c_str())); // the raw DOF vector (faces for CR, vertices for P1)
+  PetscCall(ViewInGroup(viewer, "/vertex_fields", vertexAvg));
+  PetscCall(ViewInGroup(viewer, "/cell_fields", cellMean));
+  PetscCall(ViewInGroup(viewer, "/fields", u)); // the raw DOF vector (faces for CR, vertices for P1)
   PetscCall(PetscViewerDestroy(&viewer));
   PetscCall(VecDestroy(&cellMean));
   PetscCall(VecDestroy(&vertexAvg));

@@ -112,11 +112,8 @@ static PetscErrorCode CreateSection(Space &s, PetscInt vStart, PetscInt vEnd, Pe
   for (PetscInt p = start; p < end; ++p) PetscCall(PetscSectionSetDof(section, p, 1));
   PetscCall(PetscSectionSetUp(section));
   PetscCall(PetscSectionGetStorageSize(section, &s.numLocal));
-  // One DOF per chart point and no permutation: the offset of point p is p - start (the cell tables and,
-  // for P1, Dofs() and ForEachBoundaryDof rely on this). The last offset confirms it.
-  PetscInt last = 0;
-  if (end > start) PetscCall(PetscSectionGetOffset(section, end - 1, &last));
-  PetscCheck(s.numLocal == end - start && (end == start || last == end - 1 - start), PETSC_COMM_SELF, PETSC_ERR_PLIB, "the section does not number its points in chart order");
+  // The cell tables and, for P1, Dofs() and ForEachBoundaryDof rely on DOF = p - start.
+  PetscCall(LayoutCheckPointOrder(section, start, end));
   PetscCall(DMSetLocalSection(s.mesh, section));
   PetscCall(PetscSectionDestroy(&section));
   PetscCall(DMSetMatType(s.mesh, MATAIJ));

@@ -16,4 +16,10 @@ namespace signorini {
 // section (the space's DMPlex clone). Collective.
 PetscErrorCode LayoutCreateFromDM(DM dm, DM *layout);
 
+// Checks that section s gives the points [start, end) one DOF each and nothing else, in point order, so
+// that the local entry of point p is p - start (what the cell tables and the output's derived fields use
+// instead of a lookup per point). A section without a permutation numbers its points in chart order, so
+// the storage size and the last offset settle it.
+PetscErrorCode LayoutCheckPointOrder(PetscSection s, PetscInt start, PetscInt end);
+
 } // namespace signorini
