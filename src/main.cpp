@@ -79,10 +79,10 @@ static PetscErrorCode Run(MPI_Comm comm)
   // Nested iteration needs the coarser levels of the refinement; a scene without contact is one linear solve.
   const bool nested = s.nested.enabled && s.mesh.refine > 0 && s.nested.levels != 0 && s.study.levels == 0 && !s.problem.contact.empty();
   MeshLevels levels;
-  PetscCall(MeshCreate(comm, s.mesh, &mesh, meshInfo, nested ? &levels : nullptr, s.nested.levels));
+  // The scene is checked against the coarse mesh (dimension, boundary parts) before the refinement.
+  PetscCall(MeshCreate(comm, s.mesh, &mesh, meshInfo, nested ? &levels : nullptr, s.nested.levels, [&](DM coarse) { return ProblemCheckMesh(coarse, s.problem); }));
   PetscInt dim;
   PetscCall(DMGetDimension(mesh, &dim));
-  PetscCall(ProblemSetUp(comm, dim, s.problem));
   if (s.study.levels > 0) {
     // A convergence study instead of a single run: the same scene on nested refinements of this mesh.
     PetscInt  N0 = s.mesh.file.empty() ? s.mesh.faces[0] << s.mesh.refine : 0;

@@ -414,7 +414,7 @@ PetscErrorCode MeshLevelsDestroy(MeshLevels &levels)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &o, DM *dm, MeshInfo &info, MeshLevels *levels, PetscInt keep)
+PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &o, DM *dm, MeshInfo &info, MeshLevels *levels, PetscInt keep, const std::function<PetscErrorCode(DM)> &checkCoarse)
 {
   PetscMPIInt size;
   PetscInt    cStart, cEnd;
@@ -446,6 +446,7 @@ PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &o, DM *dm, MeshInfo 
     }
   }
   PetscCall(StagePop(Stage::Distribute));
+  if (checkCoarse) PetscCall(checkCoarse(*dm));
 
   PetscCall(StagePush(Stage::Refine));
   // Level k (0 = distributed coarse mesh) is kept when it is among the `keep` levels below the fine one.

@@ -1,5 +1,7 @@
 #include "signorini/problem.h"
 
+#include <petscdmplex.h>
+
 #include <algorithm>
 
 namespace signorini {
@@ -34,6 +36,8 @@ PetscErrorCode ProblemFromCommandLine(MPI_Comm comm, Problem &p)
       for (PetscInt v : *parts[a].second)
         if (std::count(parts[b].second->begin(), parts[b].second->end(), v))
           SIGNORINI_INPUT_ERROR(comm, "options %s and %s: boundary part %" PetscInt_FMT " is named in both", parts[a].first, parts[b].first, v);
+  if (p.dirichlet.empty() && p.contact.empty())
+    SIGNORINI_INPUT_ERROR(comm, "options -bc_dirichlet/-bc_contact: the scene has neither a Dirichlet nor a contact part, so u is not determined (singular problem)");
 
   PetscCall(Expression::Create(comm, "-f", f, 1, p.f));
   PetscCall(Expression::Create(comm, "-g", g, 1, p.g));
@@ -52,6 +56,42 @@ PetscErrorCode ProblemSetUp(MPI_Comm comm, PetscInt dim, Problem &p)
   if (p.dirichlet.empty() && p.contact.empty())
     SIGNORINI_INPUT_ERROR(comm, "options -bc_dirichlet/-bc_contact: the scene has neither a Dirichlet nor a contact part, so u is not determined (singular problem)");
   if (p.exact) PetscCall(Expression::Create(comm, "-exact_grad", p.exactGradText, (int)dim, p.exactGrad));
+  PetscFunctionReturn(0);
+}
+
+std::string MissingPartMessage(const char *option, PetscInt value)
+{
+  return Format("option %s: boundary part %d does not exist on the mesh (no face carries that \"Face Sets\" value)", option, (int)value);
+}
+
+PetscErrorCode ProblemCheckMesh(DM dm, Problem &p)
+{
+  MPI_Comm comm = PetscObjectComm((PetscObject)dm);
+  PetscInt dim, fStart, fEnd;
+  DMLabel  faceSets;
+  PetscFunctionBeginUser;
+  PetscCall(DMGetDimension(dm, &dim));
+  PetscCall(ProblemSetUp(comm, dim, p));
+  PetscCall(DMPlexGetHeightStratum(dm, 1, &fStart, &fEnd));
+  PetscCall(DMGetLabel(dm, "Face Sets", &faceSets));
+  const std::pair<const char *, const std::vector<PetscInt> *> parts[] = {{"-bc_dirichlet", &p.dirichlet}, {"-bc_neumann", &p.neumann}, {"-bc_contact", &p.contact}};
+  for (const auto &part : parts)
+    for (PetscInt value : *part.second) {
+      PetscInt local = 0, global;
+      IS       is = nullptr;
+      if (faceSets) PetscCall(DMLabelGetStratumIS(faceSets, value, &is));
+      if (is) {
+        PetscInt        n;
+        const PetscInt *pts;
+        PetscCall(ISGetLocalSize(is, &n));
+        PetscCall(ISGetIndices(is, &pts));
+        for (PetscInt j = 0; j < n; ++j) local += pts[j] >= fStart && pts[j] < fEnd;
+        PetscCall(ISRestoreIndices(is, &pts));
+        PetscCall(ISDestroy(&is));
+      }
+      PetscCallMPI(MPI_Allreduce(&local, &global, 1, MPIU_INT, MPI_SUM, comm));
+      if (global == 0) SIGNORINI_INPUT_ERROR(comm, "%s", MissingPartMessage(part.first, value).c_str());
+    }
   PetscFunctionReturn(0);
 }
 

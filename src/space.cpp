@@ -235,7 +235,7 @@ static PetscErrorCode CollectBoundary(Space &s, const Problem &problem, PetscInt
         PetscCall(ISDestroy(&is));
       }
       PetscCallMPI(MPI_Allreduce(&local, &global, 1, MPIU_INT, MPI_SUM, comm));
-      if (global == 0) SIGNORINI_INPUT_ERROR(comm, "option %s: boundary part %" PetscInt_FMT " does not exist on the mesh (no face carries that \"Face Sets\" value)", part.first, value);
+      if (global == 0) SIGNORINI_INPUT_ERROR(comm, "%s", MissingPartMessage(part.first, value).c_str());
     }
   }
   PetscCall(DMLabelDestroy(&boundary));

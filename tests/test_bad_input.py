@@ -110,15 +110,27 @@ with tempfile.TemporaryDirectory() as inputs:
         ("exact solution NaN", ["-exact_u", "sqrt(x - 0.5)", "-exact_grad", "0, 0"], "option -exact_u:", True),
         ("exact gradient infinite", ["-exact_u", "0", "-exact_grad", "0, 1 / (y - y)"], "option -exact_grad:", True),
         ("exact gradient with 3 components in 2D", ["-exact_u", "0", "-exact_grad", "0, 0, 0"], "option -exact_grad:", False),
+        # option errors come before the mesh file is even read
+        ("singular, and a missing mesh file", ["-bc_dirichlet", "", "-bc_contact", "", "-mesh_file", missing], "singular", False),
+        ("bad expression, and a missing mesh file", ["-f", "2*sin(", "-mesh_file", missing], "option -f:", False),
     ]
 
+    # Errors that need no fine mesh must stop the run before the refinement (which costs minutes at scale):
+    # -dm_view prints the mesh only once it is refined, so these runs must print no "DM Object".
+    before_refinement = {"missing mesh file", "empty mesh file", "text file as mesh", "truncated mesh file",
+                         "unknown boundary label", "expression does not parse", "unknown variable", "zero cell count",
+                         "negative refine", "dim 4", "unknown space", "same part named twice",
+                         "no Dirichlet and no contact part (singular)", "exact gradient with 3 components in 2D",
+                         "singular, and a missing mesh file", "bad expression, and a missing mesh file",
+                         "quadrilateral cells", "no cells of dimension 2 or 3", "curved surface mesh"}
+    c.check(before_refinement <= {case[0] for case in cases}, "every case named in before_refinement exists")
     for name, extra, names, parallel in cases:
         for ranks in [1, 2] if parallel else [1]:
             what = "%s, %d rank(s)" % (name, ranks)
             with tempfile.TemporaryDirectory() as out:
-                args = base + ["-output", os.path.join(out, "out.h5")] + extra
+                args = base + ["-output", os.path.join(out, "out.h5"), "-refine", "1", "-dm_view"] + extra
                 try:
-                    rc, _, err, summary = harness.run(args, ranks=ranks, check=False)
+                    rc, stdout, err, summary = harness.run(args, ranks=ranks, check=False)
                 except subprocess.TimeoutExpired:
                     c.check(False, "%s: finished (it hung until the harness timeout)" % what)
                     continue
@@ -132,6 +144,8 @@ with tempfile.TemporaryDirectory() as inputs:
                     "%s: one error line (%d of ours, %d lines in all): %s" % (what, len(ours), len(lines), msg))
             c.check(len(ours) == 1 and names in ours[0], "%s: the message names '%s'" % (what, names))
             c.check("MPI_ABORT" not in err, "%s: no MPI_Abort" % what)
+            if name in before_refinement:
+                c.check("DM Object" not in stdout, "%s: stopped before the refinement (no -dm_view output)" % what)
             c.check(summary is None and not left, "%s: no summary, nothing left in the output directory %s" % (what, left))
     c.check(not os.path.exists(os.path.dirname(nodir)), "the missing output directory was not created")
 c.done()

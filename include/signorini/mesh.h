@@ -12,6 +12,8 @@
 
 #include <petscdmplex.h>
 
+#include <functional>
+
 namespace signorini {
 
 enum class Diagonal { Slash, Backslash, Crossed };
@@ -63,7 +65,8 @@ PetscErrorCode MeshLevelsDestroy(MeshLevels &levels);
 
 // Collective: builds, partitions, distributes and refines; pushes the Mesh, Distribute and Refine stages.
 // With `levels`, also keeps the coarser levels (at most `keep` below the fine mesh; -1: all of them) and
-// their parent maps instead of dropping them.
-PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &opts, DM *dm, MeshInfo &info, MeshLevels *levels = nullptr, PetscInt keep = -1);
+// their parent maps instead of dropping them. `checkCoarse`, if given, is called with the distributed
+// coarse mesh before the refinement: input errors found there cost seconds, not the refinement's minutes.
+PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &opts, DM *dm, MeshInfo &info, MeshLevels *levels = nullptr, PetscInt keep = -1, const std::function<PetscErrorCode(DM)> &checkCoarse = nullptr);
 
 } // namespace signorini

@@ -4,6 +4,8 @@
 
 #include "signorini/expression.h"
 
+#include <petscdm.h>
+
 #include <memory>
 
 namespace signorini {
@@ -19,10 +21,16 @@ struct Problem {
   bool HasExact() const { return exact != nullptr; }
 };
 
-// Reads the options and parses the scalar expressions.
+// Reads the options, parses the scalar expressions, and checks that the boundary parts determine u.
 PetscErrorCode ProblemFromCommandLine(MPI_Comm comm, Problem &p);
-// Once the mesh dimension is known: parses the exact gradient (dim components) and checks that the
-// boundary parts determine u.
+// Once the mesh dimension is known: parses the exact gradient (dim components). Also checks that the
+// boundary parts determine u, for problems built without ProblemFromCommandLine.
 PetscErrorCode ProblemSetUp(MPI_Comm comm, PetscInt dim, Problem &p);
+// Collective. ProblemSetUp with the dimension of `dm`, and a check that every boundary part named in the
+// options exists on `dm`. Run on the coarse mesh, before the refinement, so that a mistyped part fails at
+// once instead of after minutes of refinement (refinement keeps the "Face Sets" values).
+PetscErrorCode ProblemCheckMesh(DM dm, Problem &p);
+// "option -bc_contact: boundary part 7 does not exist on the mesh ...", shared with the space's own check.
+std::string MissingPartMessage(const char *option, PetscInt value);
 
 } // namespace signorini
