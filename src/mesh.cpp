@@ -378,6 +378,26 @@ PetscErrorCode MeshSize(DM dm, PetscReal *hmax)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode LabelFaces(DM dm, DMLabel label, PetscInt value, std::vector<PetscInt> &faces)
+{
+  PetscInt fStart, fEnd;
+  IS       is = nullptr;
+  PetscFunctionBeginUser;
+  faces.clear();
+  PetscCall(DMPlexGetHeightStratum(dm, 1, &fStart, &fEnd));
+  if (label) PetscCall(DMLabelGetStratumIS(label, value, &is));
+  if (!is) PetscFunctionReturn(0);
+  PetscInt        n;
+  const PetscInt *pts;
+  PetscCall(ISGetLocalSize(is, &n));
+  PetscCall(ISGetIndices(is, &pts));
+  for (PetscInt j = 0; j < n; ++j)
+    if (pts[j] >= fStart && pts[j] < fEnd) faces.push_back(pts[j]);
+  PetscCall(ISRestoreIndices(is, &pts));
+  PetscCall(ISDestroy(&is));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode MeshRefine(DM coarse, DM *fine, std::vector<PetscInt> *parent)
 {
   DMPlexTransform tr;

@@ -1,6 +1,6 @@
 #include "signorini/problem.h"
 
-#include <petscdmplex.h>
+#include "signorini/mesh.h"
 
 #include <algorithm>
 
@@ -66,29 +66,19 @@ std::string MissingPartMessage(const char *option, PetscInt value)
 
 PetscErrorCode ProblemCheckMesh(DM dm, Problem &p)
 {
-  MPI_Comm comm = PetscObjectComm((PetscObject)dm);
-  PetscInt dim, fStart, fEnd;
-  DMLabel  faceSets;
+  MPI_Comm              comm = PetscObjectComm((PetscObject)dm);
+  PetscInt              dim;
+  DMLabel               faceSets;
+  std::vector<PetscInt> faces;
   PetscFunctionBeginUser;
   PetscCall(DMGetDimension(dm, &dim));
   PetscCall(ProblemSetUp(comm, dim, p));
-  PetscCall(DMPlexGetHeightStratum(dm, 1, &fStart, &fEnd));
   PetscCall(DMGetLabel(dm, "Face Sets", &faceSets));
   const std::pair<const char *, const std::vector<PetscInt> *> parts[] = {{"-bc_dirichlet", &p.dirichlet}, {"-bc_neumann", &p.neumann}, {"-bc_contact", &p.contact}};
   for (const auto &part : parts)
     for (PetscInt value : *part.second) {
-      PetscInt local = 0, global;
-      IS       is = nullptr;
-      if (faceSets) PetscCall(DMLabelGetStratumIS(faceSets, value, &is));
-      if (is) {
-        PetscInt        n;
-        const PetscInt *pts;
-        PetscCall(ISGetLocalSize(is, &n));
-        PetscCall(ISGetIndices(is, &pts));
-        for (PetscInt j = 0; j < n; ++j) local += pts[j] >= fStart && pts[j] < fEnd;
-        PetscCall(ISRestoreIndices(is, &pts));
-        PetscCall(ISDestroy(&is));
-      }
+      PetscCall(LabelFaces(dm, faceSets, value, faces));
+      PetscInt local = (PetscInt)faces.size(), global;
       PetscCallMPI(MPI_Allreduce(&local, &global, 1, MPIU_INT, MPI_SUM, comm));
       if (global == 0) SIGNORINI_INPUT_ERROR(comm, "%s", MissingPartMessage(part.first, value).c_str());
     }

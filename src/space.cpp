@@ -181,7 +181,7 @@ static std::string PointText(const Space &s, PetscInt p)
 }
 
 // Collects the faces of every named part, checking that each part exists and lies on the boundary.
-static PetscErrorCode CollectBoundary(Space &s, const Problem &problem, PetscInt fStart, PetscInt fEnd)
+static PetscErrorCode CollectBoundary(Space &s, const Problem &problem)
 {
   MPI_Comm comm = PetscObjectComm((PetscObject)s.mesh);
   DMLabel  faceSets, boundary;
@@ -194,46 +194,35 @@ static PetscErrorCode CollectBoundary(Space &s, const Problem &problem, PetscInt
   // groups, say) would get its Neumann integral twice, or be both Dirichlet and contact.
   std::map<PetscInt, std::pair<const char *, PetscInt>> named;
   std::string                                            interior, overlap;
+  std::vector<PetscInt>                                  faces;
   for (const auto &part : parts) {
     for (PetscInt value : *part.second) {
-      PetscInt local = 0, global = 0;
-      IS       is    = nullptr;
-      if (faceSets) PetscCall(DMLabelGetStratumIS(faceSets, value, &is));
-      if (is) {
-        PetscInt        n;
-        const PetscInt *pts;
-        PetscCall(ISGetLocalSize(is, &n));
-        PetscCall(ISGetIndices(is, &pts));
-        for (PetscInt j = 0; j < n; ++j) {
-          const PetscInt f = pts[j];
-          if (f < fStart || f >= fEnd) continue; // refined labels also hold vertices and edges
-          ++local;
-          PetscInt isBoundary, nsupp;
-          const PetscInt *supp, *cone;
-          PetscCall(DMLabelGetValue(boundary, f, &isBoundary));
-          PetscCall(DMPlexGetSupportSize(s.mesh, f, &nsupp));
-          if (isBoundary != 1 || nsupp != 1) {
-            if (interior.empty()) interior = Format("option %s: boundary part %d contains interior faces", part.first, (int)value);
-            continue;
-          }
-          const auto first = named.emplace(f, std::make_pair(part.first, value));
-          if (!first.second) {
-            if (overlap.empty()) overlap = Format("option%s %s%s%s: boundary parts %d and %d overlap (they share the face near (%s)); each face may carry one condition", first.first->second.first == part.first ? "" : "s", first.first->second.first, first.first->second.first == part.first ? "" : " and ", first.first->second.first == part.first ? "" : part.first, (int)first.first->second.second, (int)value, PointText(s, f).c_str());
-            continue;
-          }
-          PetscCall(DMPlexGetSupport(s.mesh, f, &supp));
-          PetscCall(DMPlexGetCone(s.mesh, supp[0], &cone));
-          BoundaryFace bf{supp[0] - s.cStart, -1, value, -1, f};
-          for (PetscInt k = 0; k <= s.dim; ++k)
-            if (cone[k] == f) {
-              bf.opposite = k;
-              if (s.element == Element::CR) bf.dof = s.cellDof[bf.cell * s.Nb() + k];
-            }
-          s.boundary.push_back(bf);
+      PetscCall(LabelFaces(s.mesh, faceSets, value, faces));
+      for (const PetscInt f : faces) {
+        PetscInt        isBoundary, nsupp;
+        const PetscInt *supp, *cone;
+        PetscCall(DMLabelGetValue(boundary, f, &isBoundary));
+        PetscCall(DMPlexGetSupportSize(s.mesh, f, &nsupp));
+        if (isBoundary != 1 || nsupp != 1) {
+          if (interior.empty()) interior = Format("option %s: boundary part %d contains interior faces", part.first, (int)value);
+          continue;
         }
-        PetscCall(ISRestoreIndices(is, &pts));
-        PetscCall(ISDestroy(&is));
+        const auto first = named.emplace(f, std::make_pair(part.first, value));
+        if (!first.second) {
+          if (overlap.empty()) overlap = Format("option%s %s%s%s: boundary parts %d and %d overlap (they share the face near (%s)); each face may carry one condition", first.first->second.first == part.first ? "" : "s", first.first->second.first, first.first->second.first == part.first ? "" : " and ", first.first->second.first == part.first ? "" : part.first, (int)first.first->second.second, (int)value, PointText(s, f).c_str());
+          continue;
+        }
+        PetscCall(DMPlexGetSupport(s.mesh, f, &supp));
+        PetscCall(DMPlexGetCone(s.mesh, supp[0], &cone));
+        BoundaryFace bf{supp[0] - s.cStart, -1, value, -1, f};
+        for (PetscInt k = 0; k <= s.dim; ++k)
+          if (cone[k] == f) {
+            bf.opposite = k;
+            if (s.element == Element::CR) bf.dof = s.cellDof[bf.cell * s.Nb() + k];
+          }
+        s.boundary.push_back(bf);
       }
+      PetscInt local = (PetscInt)faces.size(), global;
       PetscCallMPI(MPI_Allreduce(&local, &global, 1, MPIU_INT, MPI_SUM, comm));
       if (global == 0) SIGNORINI_INPUT_ERROR(comm, "%s", MissingPartMessage(part.first, value).c_str());
     }
@@ -385,7 +374,7 @@ PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Spa
   PetscCall(BuildCellTables(s, vEnd));
   PetscCall(PetscLogEventEnd(ev[1], 0, 0, 0, 0));
   PetscCall(PetscLogEventBegin(ev[2], 0, 0, 0, 0));
-  PetscCall(CollectBoundary(s, problem, fStart, fEnd));
+  PetscCall(CollectBoundary(s, problem));
   PetscCall(PetscLogEventEnd(ev[2], 0, 0, 0, 0));
   PetscCall(PetscLogEventBegin(ev[3], 0, 0, 0, 0));
   PetscCall(ClassifyDofs(s, problem));

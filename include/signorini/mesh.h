@@ -47,6 +47,9 @@ PetscErrorCode SimplexVertices(DM dm, PetscInt p, PetscInt depth, PetscInt verts
 // The dim + 1 vertices of cell p ordered so that vertex k is the one not on face k of its cone (the order
 // of the cell tables of a discrete space).
 PetscErrorCode CellVertices(DM dm, PetscInt p, PetscInt dim, PetscInt verts[4]);
+// The local faces (height-1 points) that carry `value` in `label` (which may be null: no faces). Refined
+// labels also hold vertices and edges; those are left out.
+PetscErrorCode LabelFaces(DM dm, DMLabel label, PetscInt value, std::vector<PetscInt> &faces);
 // Longest edge of the mesh (max over ranks).
 PetscErrorCode MeshSize(DM dm, PetscReal *hmax);
 // One uniform (regular) refinement, local to each rank. If `parent` is given, parent[c] is the cell of
