@@ -1,4 +1,5 @@
 #include "signorini/mesh.h"
+#include "signorini/refine.h"
 #include "signorini/stages.h"
 
 #include <metis.h>
@@ -17,7 +18,8 @@ PetscErrorCode MeshOptionsFromCommandLine(MPI_Comm comm, MeshOptions &o)
 {
   char        file[PETSC_MAX_PATH_LEN] = "", part[64] = "metis";
   const char *diagonals[]              = {"slash", "backslash", "crossed"};
-  PetscInt    diag = (PetscInt)o.diagonal, nfaces = 3, nlo = 3, nhi = 3;
+  const char *refinements[]            = {"direct", "transform"};
+  PetscInt    diag = (PetscInt)o.diagonal, nfaces = 3, nlo = 3, nhi = 3, how = (PetscInt)o.refinement;
   PetscBool   setFaces = PETSC_FALSE;
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Mesh options", "signorini");
@@ -28,11 +30,13 @@ PetscErrorCode MeshOptionsFromCommandLine(MPI_Comm comm, MeshOptions &o)
   PetscCall(PetscOptionsRealArray("-box_upper", "Upper corner of the box", "", o.upper, &nhi, NULL));
   PetscCall(PetscOptionsEList("-box_diagonal", "2D: how each square is cut: slash (0,0)-(1,1), backslash (1,0)-(0,1), crossed (4 triangles)", "", diagonals, 3, diagonals[diag], &diag, NULL));
   PetscCall(PetscOptionsInt("-refine", "Uniform refinements in parallel after distribution", "", o.refine, &o.refine, NULL));
+  PetscCall(PetscOptionsEList("-mesh_refinement", "How triangles are refined: direct (the fine DMPlex built from the coarse one) or transform (PETSc's DMPlexTransform; always used for tetrahedra)", "", refinements, 2, refinements[how], &how, NULL));
   PetscCall(PetscOptionsString("-mesh_partitioner", "metis (libmetis on the coarse cell graph) or a PetscPartitioner type (ptscotch, simple)", "", part, part, sizeof part, NULL));
   PetscOptionsEnd();
   o.file        = file;
   o.partitioner = part;
   o.diagonal    = (Diagonal)diag;
+  o.refinement  = (Refinement)how;
   if (o.file.empty()) {
     if (o.dim != 2 && o.dim != 3) SIGNORINI_INPUT_ERROR(comm, "option -dim: must be 2 or 3, got %" PetscInt_FMT, o.dim);
     if (setFaces && nfaces == 1)
@@ -398,10 +402,18 @@ PetscErrorCode LabelFaces(DM dm, DMLabel label, PetscInt value, std::vector<Pets
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode MeshRefine(DM coarse, DM *fine, std::vector<PetscInt> *parent)
+PetscErrorCode MeshRefine(DM coarse, DM *fine, std::vector<PetscInt> *parent, Refinement how)
 {
   DMPlexTransform tr;
+  PetscInt        dim;
   PetscFunctionBeginUser;
+  PetscCall(DMGetDimension(coarse, &dim));
+  if (how == Refinement::Direct && dim == 2) {
+    PetscCall(RefineTriangles(coarse, fine, parent));
+    PetscCall(DMPlexSetRegularRefinement(*fine, PETSC_TRUE));
+    PetscCall(PetscObjectSetName((PetscObject)*fine, "mesh"));
+    PetscFunctionReturn(0);
+  }
   // The transform is kept until the parent map is read: it knows the source point of every new point.
   PetscCall(DMPlexTransformCreate(PetscObjectComm((PetscObject)coarse), &tr));
   PetscCall(DMPlexTransformSetDM(tr, coarse));
@@ -478,7 +490,7 @@ PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &o, DM *dm, MeshInfo 
   for (PetscInt k = 0; k < o.refine; ++k) {
     DM                    fine = nullptr;
     std::vector<PetscInt> parent;
-    PetscCall(MeshRefine(*dm, &fine, k >= first ? &parent : nullptr));
+    PetscCall(MeshRefine(*dm, &fine, k >= first ? &parent : nullptr, o.refinement));
     if (k >= first) {
       levels->dm.push_back(*dm); // the level's reference moves into `levels`
       levels->parent.push_back(std::move(parent));

@@ -17,6 +17,9 @@
 namespace signorini {
 
 enum class Diagonal { Slash, Backslash, Crossed };
+// How a uniform refinement is made: Direct builds the fine DMPlex from the coarse one (triangles; see
+// refine.h), Transform uses PETSc's DMPlexTransform (always for tetrahedra). Both give the same mesh.
+enum class Refinement { Direct, Transform };
 
 struct MeshOptions {
   std::string file;                 // Gmsh .msh file; empty: built-in box
@@ -27,6 +30,7 @@ struct MeshOptions {
   Diagonal    diagonal   = Diagonal::Slash;
   PetscInt    refine     = 0;       // uniform parallel refinements after distribution
   std::string partitioner = "metis"; // "metis" or any PetscPartitioner type (ptscotch, simple, ...)
+  Refinement  refinement = Refinement::Direct;
 };
 
 // What the report needs to know about how the mesh was made.
@@ -55,7 +59,7 @@ PetscErrorCode MeshSize(DM dm, PetscReal *hmax);
 // One uniform (regular) refinement, local to each rank. If `parent` is given, parent[c] is the cell of
 // `coarse` (as c - cStart) that fine cell cStart + c came from: the nested-mesh map used to evaluate a
 // coarse function on the fine mesh.
-PetscErrorCode MeshRefine(DM coarse, DM *fine, std::vector<PetscInt> *parent);
+PetscErrorCode MeshRefine(DM coarse, DM *fine, std::vector<PetscInt> *parent, Refinement how = Refinement::Direct);
 // The nested meshes of the refinement, for nested iteration: dm[0] is the distributed coarse mesh (or the
 // coarsest kept level), dm.back() the fine mesh MeshCreate returns (one more reference to it), and
 // parent[l] (l >= 1) maps the cells of level l to their parent cells in level l - 1 (as in MeshRefine).

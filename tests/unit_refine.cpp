@@ -1,0 +1,271 @@
+// Unit tests of the direct refinement of triangle meshes (RefineTriangles), against PETSc's own regular
+// refinement (DMPlexTransform) of the same distributed coarse mesh as the independent computation: two
+// levels of each, on box meshes of every diagonal pattern and on a Gmsh mesh with "Cell Sets".
+// At every level the direct mesh must
+//   - pass PETSc's consistency checks (symmetry, skeleton, faces, geometry with positive Jacobians, point
+//     star forest, interface cones);
+//   - have the same number of points of each depth, on this rank and shared with others;
+//   - be the same geometric mesh: the same cell centroids and cell areas, the same vertices;
+//   - carry the same labels: per value, the same face midpoints, vertices and cells;
+//   - give a parent map under which every fine cell lies inside its parent;
+//   - share points consistently: a shared vertex has the same coordinates on every rank.
+// Runs on 1 and 2 ranks (ctest); 3 by hand.
+#include "signorini/mesh.h"
+#include "signorini/refine.h"
+#include "unit_check.h"
+
+#include <algorithm>
+#include <array>
+#include <string>
+#include <vector>
+
+using namespace signorini;
+
+using Point3 = std::array<double, 3>;
+
+// Sorted centroids (and measures as 4th entry) of the local points of height h carrying label value
+// `value` (every point of that height when label is null).
+static PetscErrorCode Centroids(DM dm, PetscInt height, DMLabel label, PetscInt value, std::vector<std::array<double, 4>> &out)
+{
+  PetscInt start, end;
+  PetscFunctionBeginUser;
+  out.clear();
+  PetscCall(DMPlexGetHeightStratum(dm, height, &start, &end));
+  for (PetscInt p = start; p < end; ++p) {
+    if (label) {
+      PetscInt v;
+      PetscCall(DMLabelGetValue(label, p, &v));
+      if (v != value) continue;
+    }
+    PetscReal vol, x[3] = {0, 0, 0};
+    PetscCall(DMPlexComputeCellGeometryFVM(dm, p, &vol, x, NULL));
+    out.push_back({x[0], x[1], x[2], vol});
+  }
+  std::sort(out.begin(), out.end());
+  PetscFunctionReturn(0);
+}
+
+static double MaxDifference(const std::vector<std::array<double, 4>> &a, const std::vector<std::array<double, 4>> &b)
+{
+  if (a.size() != b.size()) return 1e300;
+  double m = 0;
+  for (size_t i = 0; i < a.size(); ++i)
+    for (int d = 0; d < 4; ++d) m = std::max(m, std::fabs(a[i][d] - b[i][d]));
+  return m;
+}
+
+// Points of each depth: local, and leaves of the point star forest (shared, owned elsewhere).
+static PetscErrorCode StratumCounts(DM dm, std::vector<PetscInt> &counts)
+{
+  PetscSF         sf;
+  PetscInt        nroots, nleaves;
+  const PetscInt *ilocal;
+  PetscFunctionBeginUser;
+  counts.assign(6, 0);
+  for (PetscInt d = 0; d < 3; ++d) {
+    PetscInt s, e;
+    PetscCall(DMPlexGetDepthStratum(dm, d, &s, &e));
+    counts[d] = e - s;
+  }
+  PetscCall(DMGetPointSF(dm, &sf));
+  PetscCall(PetscSFGetGraph(sf, &nroots, &nleaves, &ilocal, NULL));
+  for (PetscInt l = 0; nroots >= 0 && l < nleaves; ++l) {
+    PetscInt d;
+    PetscCall(DMPlexGetPointDepth(dm, ilocal ? ilocal[l] : l, &d));
+    ++counts[3 + d];
+  }
+  PetscFunctionReturn(0);
+}
+
+// Largest difference between a shared vertex's coordinates and those of its owner's copy.
+static PetscErrorCode SharedVertexMismatch(DM dm, double *mismatch)
+{
+  PetscSF            sf;
+  PetscInt           nroots, nleaves, vS, vE, cdim;
+  const PetscInt    *ilocal;
+  PetscSection       cs;
+  Vec                coords;
+  const PetscScalar *x;
+  PetscFunctionBeginUser;
+  *mismatch = 0;
+  PetscCall(DMGetPointSF(dm, &sf));
+  PetscCall(PetscSFGetGraph(sf, &nroots, &nleaves, &ilocal, NULL));
+  if (nroots < 0) PetscFunctionReturn(0);
+  PetscCall(DMPlexGetDepthStratum(dm, 0, &vS, &vE));
+  PetscCall(DMGetCoordinateDim(dm, &cdim));
+  PetscCall(DMGetCoordinateSection(dm, &cs));
+  PetscCall(DMGetCoordinatesLocal(dm, &coords));
+  PetscCall(VecGetArrayRead(coords, &x));
+  // Root values: each point's coordinates (vertices) or zeros; broadcast to the leaves.
+  std::vector<double> root(nroots * 3, 0.0), leaf(nroots * 3, 0.0);
+  for (PetscInt v = vS; v < vE; ++v) {
+    PetscInt off;
+    PetscCall(PetscSectionGetOffset(cs, v, &off));
+    for (PetscInt d = 0; d < cdim; ++d) root[v * 3 + d] = PetscRealPart(x[off + d]);
+  }
+  leaf = root;
+  MPI_Datatype three;
+  PetscCallMPI(MPI_Type_contiguous(3, MPI_DOUBLE, &three));
+  PetscCallMPI(MPI_Type_commit(&three));
+  PetscCall(PetscSFBcastBegin(sf, three, root.data(), leaf.data(), MPI_REPLACE));
+  PetscCall(PetscSFBcastEnd(sf, three, root.data(), leaf.data(), MPI_REPLACE));
+  PetscCallMPI(MPI_Type_free(&three));
+  for (PetscInt l = 0; l < nleaves; ++l) {
+    const PetscInt p = ilocal ? ilocal[l] : l;
+    if (p < vS || p >= vE) continue;
+    for (PetscInt d = 0; d < 3; ++d) *mismatch = std::max(*mismatch, std::fabs(leaf[p * 3 + d] - root[p * 3 + d]));
+  }
+  PetscCall(VecRestoreArrayRead(coords, &x));
+  PetscFunctionReturn(0);
+}
+
+// Largest negative barycentric coordinate of a fine cell's centroid in its parent (0 when inside).
+static PetscErrorCode ParentOutside(DM coarse, DM fine, const std::vector<PetscInt> &parent, double *outside)
+{
+  PetscInt cS, cE, ccS;
+  PetscFunctionBeginUser;
+  *outside = 0;
+  PetscCall(DMPlexGetHeightStratum(fine, 0, &cS, &cE));
+  PetscCall(DMPlexGetHeightStratum(coarse, 0, &ccS, NULL));
+  for (PetscInt c = cS; c < cE; ++c) {
+    PetscReal vol, x[3], v0[3], J[9], invJ[9], detJ;
+    PetscCall(DMPlexComputeCellGeometryFVM(fine, c, &vol, x, NULL));
+    PetscCall(DMPlexComputeCellGeometryAffineFEM(coarse, ccS + parent[c - cS], v0, J, invJ, &detJ));
+    // reference coordinates xi = invJ (x - v0) - 1 on PETSc's reference triangle [-1, 1]^2
+    PetscReal xi[2];
+    for (int i = 0; i < 2; ++i) xi[i] = invJ[i * 2 + 0] * (x[0] - v0[0]) + invJ[i * 2 + 1] * (x[1] - v0[1]) - 1.0;
+    const PetscReal lambda[3] = {-(xi[0] + xi[1]) / 2, (xi[0] + 1) / 2, (xi[1] + 1) / 2};
+    for (PetscReal l : lambda) *outside = std::max(*outside, -(double)l);
+  }
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode CompareLevels(unit::Checker &ck, const std::string &tag, DM coarse, DM direct, DM transform, const std::vector<PetscInt> &parent)
+{
+  std::vector<std::array<double, 4>> a, b;
+  PetscFunctionBeginUser;
+  PetscCall(DMPlexCheckSymmetry(direct));
+  PetscCall(DMPlexCheckSkeleton(direct, 0));
+  PetscCall(DMPlexCheckFaces(direct, 0));
+  PetscCall(DMPlexCheckGeometry(direct));
+  PetscCall(DMPlexCheckPointSF(direct, NULL, PETSC_FALSE));
+  PetscCall(DMPlexCheckInterfaceCones(direct));
+  ck.Check(true, tag + " passes DMPlexCheckSymmetry/Skeleton/Faces/Geometry/PointSF/InterfaceCones");
+
+  std::vector<PetscInt> ca, cb;
+  PetscCall(StratumCounts(transform, ca));
+  PetscCall(StratumCounts(direct, cb));
+  ck.Check(ca == cb, tag + " points of each depth, local and shared", "vertices %d/%d edges %d/%d cells %d/%d, shared %d/%d %d/%d %d/%d", (int)cb[0], (int)ca[0], (int)cb[1], (int)ca[1], (int)cb[2], (int)ca[2], (int)cb[3], (int)ca[3], (int)cb[4], (int)ca[4], (int)cb[5], (int)ca[5]);
+
+  for (PetscInt h = 0; h < 3; ++h) {
+    PetscCall(Centroids(transform, h, NULL, 0, a));
+    PetscCall(Centroids(direct, h, NULL, 0, b));
+    const double diff = MaxDifference(a, b);
+    ck.Check(diff < 1e-14, tag + " same " + (h == 0 ? "cells (centroids, areas)" : h == 1 ? "edges (midpoints, lengths)" : "vertices"), "max difference %g", diff);
+  }
+
+  PetscInt numLabels;
+  PetscCall(DMGetNumLabels(transform, &numLabels));
+  for (PetscInt l = 0; l < numLabels; ++l) {
+    const char *name;
+    DMLabel     la, lb;
+    PetscBool   skip1, skip2;
+    PetscCall(DMGetLabelName(transform, l, &name));
+    PetscCall(PetscStrcmp(name, "depth", &skip1));
+    PetscCall(PetscStrcmp(name, "celltype", &skip2));
+    if (skip1 || skip2) continue;
+    PetscCall(DMGetLabel(transform, name, &la));
+    PetscCall(DMGetLabel(direct, name, &lb));
+    if (!ck.Check(lb != nullptr, tag + " has label " + name)) continue;
+    IS              values;
+    PetscInt        nv;
+    const PetscInt *v;
+    PetscCall(DMLabelGetValueIS(la, &values));
+    PetscCall(ISGetLocalSize(values, &nv));
+    PetscCall(ISGetIndices(values, &v));
+    double worst = 0;
+    for (PetscInt i = 0; i < nv; ++i)
+      for (PetscInt h = 0; h < 3; ++h) {
+        PetscCall(Centroids(transform, h, la, v[i], a));
+        PetscCall(Centroids(direct, h, lb, v[i], b));
+        worst = std::max(worst, MaxDifference(a, b));
+      }
+    PetscCall(ISRestoreIndices(values, &v));
+    PetscCall(ISDestroy(&values));
+    ck.Check(worst < 1e-14, tag + " label " + name + ": same cells, faces and vertices per value", "max difference %g", worst);
+  }
+
+  // The global coordinate vector (made through the coordinate DM's star forest; -output writes it).
+  Vec      ga, gb;
+  PetscInt na, nb;
+  PetscCall(DMGetCoordinates(transform, &ga));
+  PetscCall(DMGetCoordinates(direct, &gb));
+  PetscCall(VecGetSize(ga, &na));
+  PetscCall(VecGetSize(gb, &nb));
+  PetscScalar sa, sb;
+  PetscReal   norma, normb;
+  PetscCall(VecSum(ga, &sa));
+  PetscCall(VecSum(gb, &sb));
+  PetscCall(VecNorm(ga, NORM_2, &norma));
+  PetscCall(VecNorm(gb, NORM_2, &normb));
+  ck.Check(na == nb && std::fabs(sa - sb) <= 1e-12 * std::fabs(sa) && std::fabs(norma - normb) <= 1e-12 * norma, tag + " global coordinate vector (size, sum, norm)", "size %d, PETSc's %d; sum %g vs %g; norm %g vs %g", (int)nb, (int)na, (double)sb, (double)sa, (double)normb, (double)norma);
+  double outside, mismatch;
+  PetscCall(ParentOutside(coarse, direct, parent, &outside));
+  ck.Check(outside < 1e-12, tag + " every fine cell lies in its parent", "barycentric coordinate %g", -outside);
+  PetscCall(SharedVertexMismatch(direct, &mismatch));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &mismatch, 1, MPI_DOUBLE, MPI_MAX, PetscObjectComm((PetscObject)direct)));
+  ck.Check(mismatch == 0, tag + " shared vertices have the owner's coordinates", "max difference %g", mismatch);
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode TestCase(unit::Checker &ck, const std::string &name, const MeshOptions &o)
+{
+  DM       coarse;
+  MeshInfo info;
+  PetscFunctionBeginUser;
+  PetscCall(MeshCreate(PETSC_COMM_WORLD, o, &coarse, info));
+  DM a = coarse, b = coarse;
+  PetscCall(PetscObjectReference((PetscObject)coarse));
+  for (PetscInt level = 1; level <= 2; ++level) {
+    DM                    fa, fb;
+    std::vector<PetscInt> pa, pb;
+    PetscCall(MeshRefine(a, &fa, &pa, Refinement::Transform));
+    PetscCall(MeshRefine(b, &fb, &pb, Refinement::Direct));
+    PetscCall(CompareLevels(ck, name + " level " + std::to_string(level), b, fb, fa, pb));
+    PetscCall(DMDestroy(&a));
+    PetscCall(DMDestroy(&b));
+    a = fa, b = fb;
+  }
+  PetscCall(DMDestroy(&a));
+  PetscCall(DMDestroy(&b));
+  PetscFunctionReturn(0);
+}
+
+int main(int argc, char **argv)
+{
+  PetscCall(PetscInitialize(&argc, &argv, NULL, NULL));
+  unit::Checker ck;
+  struct Case {
+    std::string name;
+    MeshOptions o;
+  };
+  std::vector<Case> cases;
+  for (Diagonal d : {Diagonal::Slash, Diagonal::Backslash, Diagonal::Crossed}) {
+    Case c;
+    c.name       = std::string("box 5x3 ") + (d == Diagonal::Slash ? "slash" : d == Diagonal::Backslash ? "backslash" : "crossed");
+    c.o.faces[0] = 5, c.o.faces[1] = 3, c.o.diagonal = d;
+    c.o.upper[0] = 2.5;
+    cases.push_back(c);
+  }
+  Case gmsh;
+  gmsh.name   = "gmsh square with Cell Sets";
+  gmsh.o.file = std::string(SIGNORINI_TEST_DATA) + "/square.msh";
+  cases.push_back(gmsh);
+  for (const Case &c : cases) {
+    PetscErrorCode ierr = TestCase(ck, c.name, c.o);
+    if (ierr) ck.PetscFailure(ierr, c.name);
+  }
+  const int status = ck.Finish();
+  PetscCall(PetscFinalize());
+  return status;
+}
