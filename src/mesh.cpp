@@ -30,7 +30,7 @@ PetscErrorCode MeshOptionsFromCommandLine(MPI_Comm comm, MeshOptions &o)
   PetscCall(PetscOptionsRealArray("-box_upper", "Upper corner of the box", "", o.upper, &nhi, NULL));
   PetscCall(PetscOptionsEList("-box_diagonal", "2D: how each square is cut: slash (0,0)-(1,1), backslash (1,0)-(0,1), crossed (4 triangles)", "", diagonals, 3, diagonals[diag], &diag, NULL));
   PetscCall(PetscOptionsInt("-refine", "Uniform refinements in parallel after distribution", "", o.refine, &o.refine, NULL));
-  PetscCall(PetscOptionsEList("-mesh_refinement", "How triangles are refined: direct (the fine DMPlex built from the coarse one) or transform (PETSc's DMPlexTransform; always used for tetrahedra)", "", refinements, 2, refinements[how], &how, NULL));
+  PetscCall(PetscOptionsEList("-mesh_refinement", "How the mesh is refined: direct (the fine DMPlex built from the coarse one) or transform (PETSc's DMPlexTransform; the same mesh, slower)", "", refinements, 2, refinements[how], &how, NULL));
   PetscCall(PetscOptionsString("-mesh_partitioner", "metis (libmetis on the coarse cell graph) or a PetscPartitioner type (ptscotch, simple)", "", part, part, sizeof part, NULL));
   PetscOptionsEnd();
   o.file        = file;
@@ -405,11 +405,9 @@ PetscErrorCode LabelFaces(DM dm, DMLabel label, PetscInt value, std::vector<Pets
 PetscErrorCode MeshRefine(DM coarse, DM *fine, std::vector<PetscInt> *parent, Refinement how)
 {
   DMPlexTransform tr;
-  PetscInt        dim;
   PetscFunctionBeginUser;
-  PetscCall(DMGetDimension(coarse, &dim));
-  if (how == Refinement::Direct && dim == 2) {
-    PetscCall(RefineTriangles(coarse, fine, parent));
+  if (how == Refinement::Direct) {
+    PetscCall(RefineSimplices(coarse, fine, parent));
     PetscCall(DMPlexSetRegularRefinement(*fine, PETSC_TRUE));
     PetscCall(PetscObjectSetName((PetscObject)*fine, "mesh"));
     PetscFunctionReturn(0);

@@ -1,56 +1,108 @@
 #include "signorini/refine.h"
+#include "signorini/mesh.h"
 
 #include <algorithm>
-#include <cstring>
+#include <array>
 
 namespace signorini {
 
 namespace {
 
 // The numbering of the fine points, a function of the coarse strata of one rank. Fine points are ordered
-// as PETSc orders a 2D plex: cells, vertices, edges.
-//   cells:    4 per coarse cell (k = 0, 1, 2: the corner at the cell's vertex k; k = 3: the middle one)
+// as PETSc orders a plex: cells, vertices, (3D: faces,) edges.
+//   cells:    2D 4 per coarse triangle (k = 0, 1, 2: the corner at its vertex k; 3: the middle one);
+//             3D 8 per coarse tetrahedron (4 corners, then 4 around the diagonal of the inner octahedron)
 //   vertices: the coarse vertices, then one midpoint per coarse edge
-//   edges:    2 halves per coarse edge (h = 0 holds the edge's first cone vertex), then 3 interior edges
-//             per coarse cell (j joins the midpoints of the cell's edges j and j - 1, see SetCellCones)
+//   faces:    3D only: 4 per coarse face (as the triangles of 2D), then 8 inside each coarse tetrahedron
+//   edges:    2 halves per coarse edge (h = 0 holds the edge's first cone vertex), then 3 inside each
+//             coarse triangle (2D cells, 3D faces), then (3D) the diagonal of each coarse tetrahedron
+// "Triangles" below are the coarse points cut into four: the cells in 2D, the faces in 3D.
 struct FineNumbering {
-  PetscInt cS = 0, nC = 0, eS = 0, nE = 0, vS = 0, nV = 0; // coarse strata: first point and count
+  PetscInt dim = 2;
+  PetscInt cS = 0, nC = 0, fS = 0, nF = 0, eS = 0, nE = 0, vS = 0, nV = 0; // coarse strata (faces: 3D)
 
-  PetscInt Cell(PetscInt c, PetscInt k) const { return 4 * (c - cS) + k; }
-  PetscInt VertexStart() const { return 4 * nC; }
+  PetscInt CellsPer() const { return dim == 2 ? 4 : 8; }
+  PetscInt Cell(PetscInt c, PetscInt k) const { return CellsPer() * (c - cS) + k; }
+  PetscInt VertexStart() const { return CellsPer() * nC; }
   PetscInt Vertex(PetscInt v) const { return VertexStart() + (v - vS); }
   PetscInt Mid(PetscInt e) const { return VertexStart() + nV + (e - eS); }
-  PetscInt EdgeStart() const { return VertexStart() + nV + nE; }
+  PetscInt FaceStart() const { return VertexStart() + nV + nE; } // 3D
+  PetscInt FaceChild(PetscInt f, PetscInt k) const { return FaceStart() + 4 * (f - fS) + k; }
+  PetscInt CellFace(PetscInt c, PetscInt j) const { return FaceStart() + 4 * nF + 8 * (c - cS) + j; }
+  PetscInt EdgeStart() const { return dim == 2 ? VertexStart() + nV + nE : FaceStart() + 4 * nF + 8 * nC; }
   PetscInt Half(PetscInt e, PetscInt h) const { return EdgeStart() + 2 * (e - eS) + h; }
-  PetscInt Inner(PetscInt c, PetscInt j) const { return EdgeStart() + 2 * nE + 3 * (c - cS) + j; }
-  PetscInt End() const { return EdgeStart() + 2 * nE + 3 * nC; }
+  PetscInt TriangleStart() const { return dim == 2 ? cS : fS; }
+  PetscInt NumTriangles() const { return dim == 2 ? nC : nF; }
+  PetscInt TriangleChild(PetscInt t, PetscInt k) const { return dim == 2 ? Cell(t, k) : FaceChild(t, k); }
+  PetscInt TriangleEdge(PetscInt t, PetscInt j) const { return EdgeStart() + 2 * nE + 3 * (t - TriangleStart()) + j; }
+  PetscInt Diagonal(PetscInt c) const { return EdgeStart() + 2 * nE + 3 * nF + (c - cS); } // 3D
+  PetscInt End() const { return dim == 2 ? EdgeStart() + 2 * nE + 3 * nC : EdgeStart() + 2 * nE + 3 * nF + nC; }
 
-  // The fine points that coarse point p becomes (at most 7); returns their number.
-  PetscInt Children(PetscInt p, PetscInt ch[7]) const
+  // The fine points that coarse point p becomes (at most 17); returns their number.
+  PetscInt Children(PetscInt p, PetscInt ch[17]) const
   {
+    PetscInt n = 0;
     if (p >= vS && p < vS + nV) {
-      ch[0] = Vertex(p);
-      return 1;
+      ch[n++] = Vertex(p);
+    } else if (p >= eS && p < eS + nE) {
+      ch[n++] = Mid(p), ch[n++] = Half(p, 0), ch[n++] = Half(p, 1);
+    } else if (dim == 3 && p >= fS && p < fS + nF) {
+      for (PetscInt k = 0; k < 4; ++k) ch[n++] = FaceChild(p, k);
+      for (PetscInt j = 0; j < 3; ++j) ch[n++] = TriangleEdge(p, j);
+    } else {
+      for (PetscInt k = 0; k < CellsPer(); ++k) ch[n++] = Cell(p, k);
+      if (dim == 2)
+        for (PetscInt j = 0; j < 3; ++j) ch[n++] = TriangleEdge(p, j);
+      else {
+        for (PetscInt j = 0; j < 8; ++j) ch[n++] = CellFace(p, j);
+        ch[n++] = Diagonal(p);
+      }
     }
-    if (p >= eS && p < eS + nE) {
-      ch[0] = Mid(p), ch[1] = Half(p, 0), ch[2] = Half(p, 1);
-      return 3;
-    }
-    for (PetscInt k = 0; k < 4; ++k) ch[k] = Cell(p, k);
-    for (PetscInt j = 0; j < 3; ++j) ch[4 + j] = Inner(p, j);
-    return 7;
+    return n;
   }
 };
 
-// One oriented edge of a coarse triangle: the halves in the direction of travel, each with the
-// orientation it has in a fine cell (0: as stored, -1: reversed).
+// One oriented edge of a coarse triangle: its ends in the direction of travel, and its halves in that
+// direction, each with the orientation it has in a fine triangle (0: as stored, -1: reversed).
 struct OrientedEdge {
-  PetscInt from, to;               // coarse vertices
-  PetscInt first, second;          // fine half edges: the one at `from`, the one at `to`
-  PetscInt orientation;            // of both halves in the fine cells
+  PetscInt from, to;      // coarse vertices
+  PetscInt first, second; // fine half edges: the one at `from`, the one at `to`
+  PetscInt orientation;
 };
 
-PetscErrorCode SetEdgeCones(DM coarse, DM fine, const FineNumbering &n)
+// The edges of coarse triangle t in its own order: edge k runs from vertex k to vertex k + 1.
+PetscErrorCode TriangleEdges(DM coarse, const FineNumbering &n, PetscInt t, OrientedEdge ed[3], const PetscInt **cone)
+{
+  const PetscInt *ornt;
+  PetscFunctionBeginUser;
+  PetscCall(DMPlexGetCone(coarse, t, cone));
+  PetscCall(DMPlexGetConeOrientation(coarse, t, &ornt));
+  for (PetscInt k = 0; k < 3; ++k) {
+    const PetscInt *ends;
+    PetscCall(DMPlexGetCone(coarse, (*cone)[k], &ends));
+    PetscCheck(ornt[k] == 0 || ornt[k] == -1, PETSC_COMM_SELF, PETSC_ERR_SUP, "refinement: edge orientation %" PetscInt_FMT " in triangle %" PetscInt_FMT, ornt[k], t);
+    const bool fwd = ornt[k] == 0;
+    ed[k] = {fwd ? ends[0] : ends[1], fwd ? ends[1] : ends[0], n.Half((*cone)[k], fwd ? 0 : 1), n.Half((*cone)[k], fwd ? 1 : 0), ornt[k]};
+  }
+  for (PetscInt k = 0; k < 3; ++k)
+    PetscCheck(ed[k].to == ed[(k + 1) % 3].from, PETSC_COMM_SELF, PETSC_ERR_PLIB, "refinement: the edges of triangle %" PetscInt_FMT " do not form a cycle", t);
+  PetscFunctionReturn(0);
+}
+
+// The fine vertices of the four children of triangle t (v0, v1, v2) with midpoints m_k of edge k: the
+// corners (v0, m0, m2), (m0, v1, m1), (m2, m1, v2) and the middle (m0, m1, m2). Each child's edge k runs
+// from its vertex k to k + 1, so its vertex order is its orientation.
+void TriangleChildVertices(const FineNumbering &n, const OrientedEdge ed[3], const PetscInt *cone, std::array<PetscInt, 3> child[4])
+{
+  const PetscInt v[3] = {n.Vertex(ed[0].from), n.Vertex(ed[1].from), n.Vertex(ed[2].from)};
+  const PetscInt m[3] = {n.Mid(cone[0]), n.Mid(cone[1]), n.Mid(cone[2])};
+  child[0] = {v[0], m[0], m[2]};
+  child[1] = {m[0], v[1], m[1]};
+  child[2] = {m[2], m[1], v[2]};
+  child[3] = {m[0], m[1], m[2]};
+}
+
+PetscErrorCode SetEdgeHalves(DM coarse, DM fine, const FineNumbering &n)
 {
   PetscFunctionBeginUser;
   for (PetscInt e = n.eS; e < n.eS + n.nE; ++e) {
@@ -63,68 +115,168 @@ PetscErrorCode SetEdgeCones(DM coarse, DM fine, const FineNumbering &n)
   PetscFunctionReturn(0);
 }
 
-// The four children of each coarse triangle (v0, v1, v2) with edge k from v_k to v_(k+1) and midpoints
-// m_k: corners (v0, m0, m2), (m0, v1, m1), (m2, m1, v2) and the middle (m0, m1, m2). Interior edge j
-// is stored from m_j to m_(j-1): (m0, m2), (m1, m0), (m2, m1); corner j uses it as stored, the middle
-// triangle reversed.
-PetscErrorCode SetCellCones(DM coarse, DM fine, const FineNumbering &n)
+// The four children of each coarse triangle (see TriangleChildVertices) and its three interior edges:
+// edge j is stored from m_j to m_(j-1), (m0, m2), (m1, m0), (m2, m1); corner j uses it as stored, the
+// middle triangle reversed.
+PetscErrorCode SplitTriangles(DM coarse, DM fine, const FineNumbering &n)
 {
   PetscFunctionBeginUser;
-  for (PetscInt c = n.cS; c < n.cS + n.nC; ++c) {
-    const PetscInt *cone, *ornt;
+  for (PetscInt t = n.TriangleStart(); t < n.TriangleStart() + n.NumTriangles(); ++t) {
+    const PetscInt *cone;
     OrientedEdge    ed[3];
-    PetscCall(DMPlexGetCone(coarse, c, &cone));
-    PetscCall(DMPlexGetConeOrientation(coarse, c, &ornt));
-    for (PetscInt k = 0; k < 3; ++k) {
-      const PetscInt *ends;
-      PetscCall(DMPlexGetCone(coarse, cone[k], &ends));
-      PetscCheck(ornt[k] == 0 || ornt[k] == -1, PETSC_COMM_SELF, PETSC_ERR_SUP, "refinement: edge orientation %" PetscInt_FMT " in cell %" PetscInt_FMT, ornt[k], c);
-      const bool fwd = ornt[k] == 0;
-      ed[k] = {fwd ? ends[0] : ends[1], fwd ? ends[1] : ends[0], n.Half(cone[k], fwd ? 0 : 1), n.Half(cone[k], fwd ? 1 : 0), ornt[k]};
-    }
-    for (PetscInt k = 0; k < 3; ++k)
-      PetscCheck(ed[k].to == ed[(k + 1) % 3].from, PETSC_COMM_SELF, PETSC_ERR_PLIB, "refinement: the edges of cell %" PetscInt_FMT " do not form a cycle", c);
-    const PetscInt m[3] = {n.Mid(cone[0]), n.Mid(cone[1]), n.Mid(cone[2])};
+    PetscCall(TriangleEdges(coarse, n, t, ed, &cone));
+    const PetscInt m[3]        = {n.Mid(cone[0]), n.Mid(cone[1]), n.Mid(cone[2])};
     const PetscInt inner[3][2] = {{m[0], m[2]}, {m[1], m[0]}, {m[2], m[1]}};
-    for (PetscInt j = 0; j < 3; ++j) PetscCall(DMPlexSetCone(fine, n.Inner(c, j), inner[j]));
+    for (PetscInt j = 0; j < 3; ++j) PetscCall(DMPlexSetCone(fine, n.TriangleEdge(t, j), inner[j]));
     const PetscInt o = 0, r = -1;
-    const PetscInt cones[4][3] = {{ed[0].first, n.Inner(c, 0), ed[2].second},
-                                  {ed[0].second, ed[1].first, n.Inner(c, 1)},
-                                  {n.Inner(c, 2), ed[1].second, ed[2].first},
-                                  {n.Inner(c, 1), n.Inner(c, 2), n.Inner(c, 0)}};
+    const PetscInt cones[4][3] = {{ed[0].first, n.TriangleEdge(t, 0), ed[2].second},
+                                  {ed[0].second, ed[1].first, n.TriangleEdge(t, 1)},
+                                  {n.TriangleEdge(t, 2), ed[1].second, ed[2].first},
+                                  {n.TriangleEdge(t, 1), n.TriangleEdge(t, 2), n.TriangleEdge(t, 0)}};
     const PetscInt ornts[4][3] = {{ed[0].orientation, o, ed[2].orientation},
                                   {ed[0].orientation, ed[1].orientation, o},
                                   {o, ed[1].orientation, ed[2].orientation},
                                   {r, r, r}};
     for (PetscInt k = 0; k < 4; ++k) {
-      PetscCall(DMPlexSetCone(fine, n.Cell(c, k), cones[k]));
-      PetscCall(DMPlexSetConeOrientation(fine, n.Cell(c, k), ornts[k]));
+      PetscCall(DMPlexSetCone(fine, n.TriangleChild(t, k), cones[k]));
+      PetscCall(DMPlexSetConeOrientation(fine, n.TriangleChild(t, k), ornts[k]));
     }
   }
   PetscFunctionReturn(0);
 }
 
-// The cell-type label as three contiguous strata (stride index sets): the fine mesh is born stratified,
-// so no point goes through DMPlexSetCellType's hash.
+// A fine point of a coarse tetrahedron known by its vertices: in stored order, and sorted (the key the
+// lookups below compare).
+template <int N>
+struct Known {
+  PetscInt                point;
+  std::array<PetscInt, N> verts, key;
+  Known(PetscInt p, const std::array<PetscInt, N> &v) : point(p), verts(v), key(v) { std::sort(key.begin(), key.end()); }
+};
+
+// The known point with the vertices `verts` (in any order), or null. A coarse tetrahedron has 25 fine
+// edges and 24 fine faces on or in it, so a linear search is as fast as anything.
+template <int N>
+static const Known<N> *Find(const std::vector<Known<N>> &known, std::array<PetscInt, N> verts)
+{
+  std::sort(verts.begin(), verts.end());
+  for (const Known<N> &k : known)
+    if (k.key == verts) return &k;
+  return nullptr;
+}
+
+// Signed volume factor of four fine vertices (coordinates `x`, fine vertex v at (v - VertexStart) * 3).
+static PetscReal Det(const std::vector<PetscReal> &x, const FineNumbering &n, const std::array<PetscInt, 4> &v)
+{
+  PetscReal e[3][3];
+  for (PetscInt i = 0; i < 3; ++i)
+    for (PetscInt d = 0; d < 3; ++d) e[i][d] = x[(v[i + 1] - n.VertexStart()) * 3 + d] - x[(v[0] - n.VertexStart()) * 3 + d];
+  return e[0][0] * (e[1][1] * e[2][2] - e[1][2] * e[2][1]) - e[0][1] * (e[1][0] * e[2][2] - e[1][2] * e[2][0]) + e[0][2] * (e[1][0] * e[2][1] - e[1][1] * e[2][0]);
+}
+
+// The eight children of each coarse tetrahedron with vertices (w0, w1, w2, w3) in PETSc's order and edge
+// midpoints M_ij: the corners (w0, M01, M02, M03), (M01, w1, M12, M13), (M02, M12, w2, M23),
+// (M03, M13, M23, w3), and the inner octahedron cut by the diagonal M01-M23 (PETSc's choice, so that both
+// refinements give the same mesh) into four around it. The cut-off faces of the corners and the four
+// faces through the diagonal are the cell's interior faces. Faces and edges of each child are found by
+// their vertices among the fine points of the coarse cell, and oriented against PETSc's reference
+// tetrahedron, whose face k has vertices (0 1 2), (0 3 1), (0 2 3), (2 1 3).
+PetscErrorCode SplitTetrahedra(DM coarse, DM fine, const FineNumbering &n, const std::vector<PetscReal> &x)
+{
+  static const PetscInt refFace[4][3] = {{0, 1, 2}, {0, 3, 1}, {0, 2, 3}, {2, 1, 3}};
+  std::vector<Known<2>> edges;
+  std::vector<Known<3>> faces;
+  PetscFunctionBeginUser;
+  for (PetscInt c = n.cS; c < n.cS + n.nC; ++c) {
+    const PetscInt *cellCone;
+    PetscInt        verts[4];
+    PetscCall(CellVertices(coarse, c, 3, verts));
+    const PetscInt w[4] = {n.Vertex(verts[3]), n.Vertex(verts[2]), n.Vertex(verts[1]), n.Vertex(verts[0])}; // PETSc's order
+    PetscCall(DMPlexGetCone(coarse, c, &cellCone));
+    // The fine edges and faces on the cell's boundary, with their stored vertex order.
+    edges.clear();
+    faces.clear();
+    PetscInt mid[4][4] = {{-1, -1, -1, -1}, {-1, -1, -1, -1}, {-1, -1, -1, -1}, {-1, -1, -1, -1}}; // M_ij, from the edges of the faces
+    for (PetscInt k = 0; k < 4; ++k) {
+      const PetscInt *cone;
+      OrientedEdge    ed[3];
+      PetscCall(TriangleEdges(coarse, n, cellCone[k], ed, &cone));
+      std::array<PetscInt, 3> child[4];
+      TriangleChildVertices(n, ed, cone, child);
+      for (PetscInt j = 0; j < 4; ++j) faces.emplace_back(n.FaceChild(cellCone[k], j), child[j]);
+      const PetscInt m[3] = {n.Mid(cone[0]), n.Mid(cone[1]), n.Mid(cone[2])};
+      for (PetscInt j = 0; j < 3; ++j) edges.emplace_back(n.TriangleEdge(cellCone[k], j), std::array<PetscInt, 2>{m[j], m[(j + 2) % 3]});
+      for (PetscInt j = 0; j < 3; ++j)
+        for (PetscInt a = 0; a < 4; ++a)
+          for (PetscInt b = 0; b < 4; ++b)
+            if (n.Vertex(ed[j].from) == w[a] && n.Vertex(ed[j].to) == w[b]) mid[a][b] = mid[b][a] = m[j];
+    }
+    for (PetscInt a = 0; a < 4; ++a)
+      for (PetscInt b = a + 1; b < 4; ++b) PetscCheck(mid[a][b] >= 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "refinement: cell %" PetscInt_FMT " has no edge between its vertices %" PetscInt_FMT " and %" PetscInt_FMT, c, a, b);
+    const PetscInt diagonal[2] = {mid[0][1], mid[2][3]};
+    PetscCall(DMPlexSetCone(fine, n.Diagonal(c), diagonal));
+    edges.emplace_back(n.Diagonal(c), std::array<PetscInt, 2>{diagonal[0], diagonal[1]});
+    const std::array<PetscInt, 3> inner[8] = {{mid[0][1], mid[0][2], mid[0][3]}, {mid[0][1], mid[1][2], mid[1][3]}, {mid[0][2], mid[1][2], mid[2][3]}, {mid[0][3], mid[1][3], mid[2][3]},
+                                              {mid[0][1], mid[2][3], mid[0][2]}, {mid[0][1], mid[2][3], mid[0][3]}, {mid[0][1], mid[2][3], mid[1][2]}, {mid[0][1], mid[2][3], mid[1][3]}};
+    for (PetscInt j = 0; j < 8; ++j) {
+      PetscInt cone[3], ornt[3];
+      for (PetscInt k = 0; k < 3; ++k) {
+        const std::array<PetscInt, 2> want = {inner[j][k], inner[j][(k + 1) % 3]};
+        const Known<2>               *e    = Find<2>(edges, want);
+        PetscCheck(e, PETSC_COMM_SELF, PETSC_ERR_PLIB, "refinement: no edge for interior face %" PetscInt_FMT " of cell %" PetscInt_FMT, j, c);
+        cone[k] = e->point;
+        ornt[k] = e->verts[0] == want[0] ? 0 : -1;
+      }
+      PetscCall(DMPlexSetCone(fine, n.CellFace(c, j), cone));
+      PetscCall(DMPlexSetConeOrientation(fine, n.CellFace(c, j), ornt));
+      faces.emplace_back(n.CellFace(c, j), inner[j]);
+    }
+    // The children, each turned to the parent's handedness.
+    std::array<PetscInt, 4> child[8] = {{w[0], mid[0][1], mid[0][2], mid[0][3]}, {mid[0][1], w[1], mid[1][2], mid[1][3]}, {mid[0][2], mid[1][2], w[2], mid[2][3]}, {mid[0][3], mid[1][3], mid[2][3], w[3]},
+                                        {mid[0][1], mid[2][3], mid[0][2], mid[0][3]}, {mid[0][1], mid[2][3], mid[0][3], mid[1][3]}, {mid[0][1], mid[2][3], mid[1][3], mid[1][2]}, {mid[0][1], mid[2][3], mid[1][2], mid[0][2]}};
+    const bool positive = Det(x, n, {w[0], w[1], w[2], w[3]}) > 0;
+    for (PetscInt k = 0; k < 8; ++k) {
+      if ((Det(x, n, child[k]) > 0) != positive) std::swap(child[k][2], child[k][3]);
+      PetscInt cone[4], ornt[4];
+      for (PetscInt f = 0; f < 4; ++f) {
+        const std::array<PetscInt, 3> want = {child[k][refFace[f][0]], child[k][refFace[f][1]], child[k][refFace[f][2]]};
+        const Known<3>               *face = Find<3>(faces, want);
+        PetscCheck(face, PETSC_COMM_SELF, PETSC_ERR_PLIB, "refinement: no face %" PetscInt_FMT " for child %" PetscInt_FMT " of cell %" PetscInt_FMT, f, k, c);
+        cone[f] = face->point;
+        PetscCall(DMPolytopeGetVertexOrientation(DM_POLYTOPE_TRIANGLE, face->verts.data(), want.data(), &ornt[f]));
+      }
+      PetscCall(DMPlexSetCone(fine, n.Cell(c, k), cone));
+      PetscCall(DMPlexSetConeOrientation(fine, n.Cell(c, k), ornt));
+    }
+  }
+  PetscFunctionReturn(0);
+}
+
+// The cell-type label as contiguous strata (stride index sets): the fine mesh is born stratified, so no
+// point goes through DMPlexSetCellType's hash.
 PetscErrorCode SetCellTypes(DM fine, const FineNumbering &n)
 {
-  DMLabel        label;
-  const PetscInt starts[4] = {0, n.VertexStart(), n.EdgeStart(), n.End()};
-  const DMPolytopeType types[3] = {DM_POLYTOPE_TRIANGLE, DM_POLYTOPE_POINT, DM_POLYTOPE_SEGMENT};
+  DMLabel label;
   PetscFunctionBeginUser;
   PetscCall(DMCreateLabel(fine, "celltype"));
   PetscCall(DMGetLabel(fine, "celltype", &label));
-  for (PetscInt s = 0; s < 3; ++s) {
+  std::vector<std::pair<DMPolytopeType, std::pair<PetscInt, PetscInt>>> strata = {
+    {n.dim == 2 ? DM_POLYTOPE_TRIANGLE : DM_POLYTOPE_TETRAHEDRON, {0, n.VertexStart()}},
+    {DM_POLYTOPE_POINT, {n.VertexStart(), n.VertexStart() + n.nV + n.nE}},
+    {DM_POLYTOPE_SEGMENT, {n.EdgeStart(), n.End()}}};
+  if (n.dim == 3) strata.push_back({DM_POLYTOPE_TRIANGLE, {n.FaceStart(), n.EdgeStart()}});
+  for (const auto &s : strata) {
     IS is;
-    PetscCall(ISCreateStride(PETSC_COMM_SELF, starts[s + 1] - starts[s], starts[s], 1, &is));
-    PetscCall(DMLabelSetStratumIS(label, types[s], is));
+    PetscCall(ISCreateStride(PETSC_COMM_SELF, s.second.second - s.second.first, s.second.first, 1, &is));
+    PetscCall(DMLabelSetStratumIS(label, s.first, is));
     PetscCall(ISDestroy(&is));
   }
   PetscFunctionReturn(0);
 }
 
 // A point shared with another rank is shared with the same children there: the children of leaf p are
-// leaves whose roots are the same children of p's root, numbered with the owner's strata.
+// leaves whose roots are the same children of p's root, numbered with the owner's strata. (A shared edge
+// or face has the same cone on every rank, so its children come in the same order.)
 PetscErrorCode SetPointSF(DM coarse, DM fine, const FineNumbering &n)
 {
   MPI_Comm           comm = PetscObjectComm((PetscObject)coarse);
@@ -144,7 +296,7 @@ PetscErrorCode SetPointSF(DM coarse, DM fine, const FineNumbering &n)
   std::vector<PetscSFNode> roots;
   for (PetscInt l = 0; l < nleaves; ++l) {
     const PetscInt p = ilocal ? ilocal[l] : l;
-    PetscInt       mine[7], theirs[7];
+    PetscInt       mine[17], theirs[17];
     const PetscInt k = n.Children(p, mine);
     PetscCheck(remote[iremote[l].rank].Children(iremote[l].index, theirs) == k, PETSC_COMM_SELF, PETSC_ERR_PLIB, "refinement: shared point %" PetscInt_FMT " has another kind on rank %" PetscInt_FMT, p, iremote[l].rank);
     for (PetscInt j = 0; j < k; ++j) {
@@ -196,7 +348,7 @@ PetscErrorCode RefineLabels(DM coarse, DM fine, const FineNumbering &n)
       PetscCall(ISGetIndices(pointIS, &points));
       PetscInt *children;
       PetscInt  count = 0;
-      PetscCall(PetscMalloc1(7 * np, &children));
+      PetscCall(PetscMalloc1(17 * np, &children));
       for (PetscInt j = 0; j < np; ++j) count += n.Children(points[j], children + count);
       std::sort(children, children + count);
       PetscCall(ISRestoreIndices(pointIS, &points));
@@ -212,50 +364,61 @@ PetscErrorCode RefineLabels(DM coarse, DM fine, const FineNumbering &n)
   PetscFunctionReturn(0);
 }
 
-// Coarse vertices keep their coordinates; each midpoint is the mean of its edge's ends.
-PetscErrorCode SetCoordinates(DM coarse, DM fine, const FineNumbering &n)
+// Coordinates of the fine vertices, 3 per vertex (zero-padded): coarse vertices keep theirs, each
+// midpoint is the mean of its edge's ends.
+PetscErrorCode FineCoordinates(DM coarse, const FineNumbering &n, std::vector<PetscReal> &x)
 {
-  PetscSection       csec, fsec;
-  Vec                cvec, fvec;
+  PetscSection       csec;
+  Vec                cvec;
   const PetscScalar *cx;
-  PetscScalar       *fx;
   PetscInt           cdim;
   PetscFunctionBeginUser;
   PetscCall(DMGetCoordinateDim(coarse, &cdim));
   PetscCall(DMGetCoordinateSection(coarse, &csec));
   PetscCall(DMGetCoordinatesLocal(coarse, &cvec));
+  PetscCall(VecGetArrayRead(cvec, &cx));
+  x.assign((n.nV + n.nE) * 3, 0.0);
+  for (PetscInt v = n.vS; v < n.vS + n.nV; ++v) {
+    PetscInt off;
+    PetscCall(PetscSectionGetOffset(csec, v, &off));
+    for (PetscInt d = 0; d < cdim; ++d) x[(v - n.vS) * 3 + d] = PetscRealPart(cx[off + d]);
+  }
+  for (PetscInt e = n.eS; e < n.eS + n.nE; ++e) {
+    const PetscInt *cone;
+    PetscCall(DMPlexGetCone(coarse, e, &cone));
+    for (PetscInt d = 0; d < 3; ++d) x[(n.nV + e - n.eS) * 3 + d] = 0.5 * (x[(cone[0] - n.vS) * 3 + d] + x[(cone[1] - n.vS) * 3 + d]);
+  }
+  PetscCall(VecRestoreArrayRead(cvec, &cx));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SetCoordinates(DM coarse, DM fine, const FineNumbering &n, const std::vector<PetscReal> &x)
+{
+  PetscSection fsec;
+  Vec          fvec;
+  PetscScalar *fx;
+  PetscInt     cdim;
+  PetscFunctionBeginUser;
+  PetscCall(DMGetCoordinateDim(coarse, &cdim));
   PetscCall(DMSetCoordinateDim(fine, cdim));
   PetscCall(PetscSectionCreate(PetscObjectComm((PetscObject)fine), &fsec)); // the global section scans offsets over this comm
   PetscCall(PetscSectionSetNumFields(fsec, 1));
   PetscCall(PetscSectionSetFieldComponents(fsec, 0, cdim));
-  PetscCall(PetscSectionSetChart(fsec, n.VertexStart(), n.EdgeStart()));
-  for (PetscInt v = n.VertexStart(); v < n.EdgeStart(); ++v) {
+  const PetscInt vStart = n.VertexStart(), vEnd = vStart + n.nV + n.nE;
+  PetscCall(PetscSectionSetChart(fsec, vStart, vEnd));
+  for (PetscInt v = vStart; v < vEnd; ++v) {
     PetscCall(PetscSectionSetDof(fsec, v, cdim));
     PetscCall(PetscSectionSetFieldDof(fsec, v, 0, cdim));
   }
   PetscCall(PetscSectionSetUp(fsec));
   PetscCall(DMSetCoordinateSection(fine, cdim, fsec));
-  PetscCall(VecCreateSeq(PETSC_COMM_SELF, (n.nV + n.nE) * cdim, &fvec));
+  PetscCall(VecCreateSeq(PETSC_COMM_SELF, (vEnd - vStart) * cdim, &fvec));
   PetscCall(VecSetBlockSize(fvec, cdim));
   PetscCall(PetscObjectSetName((PetscObject)fvec, "coordinates"));
-  PetscCall(VecGetArrayRead(cvec, &cx));
   PetscCall(VecGetArray(fvec, &fx));
-  // The fine section puts vertex v at (v - VertexStart()) * cdim: coarse vertices first, then midpoints.
-  for (PetscInt v = n.vS; v < n.vS + n.nV; ++v) {
-    PetscInt off;
-    PetscCall(PetscSectionGetOffset(csec, v, &off));
-    for (PetscInt d = 0; d < cdim; ++d) fx[(v - n.vS) * cdim + d] = cx[off + d];
-  }
-  for (PetscInt e = n.eS; e < n.eS + n.nE; ++e) {
-    const PetscInt *cone;
-    PetscInt        o0, o1;
-    PetscCall(DMPlexGetCone(coarse, e, &cone));
-    PetscCall(PetscSectionGetOffset(csec, cone[0], &o0));
-    PetscCall(PetscSectionGetOffset(csec, cone[1], &o1));
-    for (PetscInt d = 0; d < cdim; ++d) fx[(n.nV + e - n.eS) * cdim + d] = 0.5 * (cx[o0 + d] + cx[o1 + d]);
-  }
+  for (PetscInt v = 0; v < vEnd - vStart; ++v) // the section puts vertex v at (v - vStart) * cdim
+    for (PetscInt d = 0; d < cdim; ++d) fx[v * cdim + d] = x[v * 3 + d];
   PetscCall(VecRestoreArray(fvec, &fx));
-  PetscCall(VecRestoreArrayRead(cvec, &cx));
   PetscCall(DMSetCoordinatesLocal(fine, fvec));
   PetscCall(VecDestroy(&fvec));
   PetscCall(PetscSectionDestroy(&fsec));
@@ -264,37 +427,47 @@ PetscErrorCode SetCoordinates(DM coarse, DM fine, const FineNumbering &n)
 
 } // namespace
 
-PetscErrorCode RefineTriangles(DM coarse, DM *fine, std::vector<PetscInt> *parent)
+PetscErrorCode RefineSimplices(DM coarse, DM *fine, std::vector<PetscInt> *parent)
 {
-  PetscInt      dim, cE, eE, vE;
+  PetscInt      cE, eE, vE;
   FineNumbering n;
   DM            dm;
   PetscFunctionBeginUser;
-  PetscCall(DMGetDimension(coarse, &dim));
-  PetscCheck(dim == 2, PetscObjectComm((PetscObject)coarse), PETSC_ERR_SUP, "RefineTriangles: mesh dimension %" PetscInt_FMT ", not 2", dim);
+  PetscCall(DMGetDimension(coarse, &n.dim));
+  PetscCheck(n.dim == 2 || n.dim == 3, PetscObjectComm((PetscObject)coarse), PETSC_ERR_SUP, "RefineSimplices: mesh dimension %" PetscInt_FMT, n.dim);
   PetscCall(DMPlexGetHeightStratum(coarse, 0, &n.cS, &cE));
   PetscCall(DMPlexGetDepthStratum(coarse, 1, &n.eS, &eE));
   PetscCall(DMPlexGetDepthStratum(coarse, 0, &n.vS, &vE));
   n.nC = cE - n.cS, n.nE = eE - n.eS, n.nV = vE - n.vS;
+  if (n.dim == 3) {
+    PetscInt fE;
+    PetscCall(DMPlexGetDepthStratum(coarse, 2, &n.fS, &fE));
+    n.nF = fE - n.fS;
+  }
+  std::vector<PetscReal> x;
+  PetscCall(FineCoordinates(coarse, n, x));
 
   PetscCall(DMCreate(PetscObjectComm((PetscObject)coarse), &dm));
   PetscCall(DMSetType(dm, DMPLEX));
-  PetscCall(DMSetDimension(dm, 2));
+  PetscCall(DMSetDimension(dm, n.dim));
   PetscCall(DMPlexSetChart(dm, 0, n.End()));
-  for (PetscInt c = 0; c < 4 * n.nC; ++c) PetscCall(DMPlexSetConeSize(dm, c, 3));
+  for (PetscInt c = 0; c < n.VertexStart(); ++c) PetscCall(DMPlexSetConeSize(dm, c, n.dim + 1));
+  if (n.dim == 3)
+    for (PetscInt f = n.FaceStart(); f < n.EdgeStart(); ++f) PetscCall(DMPlexSetConeSize(dm, f, 3));
   for (PetscInt e = n.EdgeStart(); e < n.End(); ++e) PetscCall(DMPlexSetConeSize(dm, e, 2));
   PetscCall(DMSetUp(dm));
-  PetscCall(SetEdgeCones(coarse, dm, n));
-  PetscCall(SetCellCones(coarse, dm, n));
+  PetscCall(SetEdgeHalves(coarse, dm, n));
+  PetscCall(SplitTriangles(coarse, dm, n));
+  if (n.dim == 3) PetscCall(SplitTetrahedra(coarse, dm, n, x));
   PetscCall(DMPlexSymmetrize(dm));
   PetscCall(SetCellTypes(dm, n));
   PetscCall(DMPlexStratify(dm));
   PetscCall(SetPointSF(coarse, dm, n));
   PetscCall(RefineLabels(coarse, dm, n));
-  PetscCall(SetCoordinates(coarse, dm, n));
+  PetscCall(SetCoordinates(coarse, dm, n, x));
   if (parent) {
-    parent->resize(4 * n.nC);
-    for (PetscInt c = 0; c < 4 * n.nC; ++c) (*parent)[c] = c / 4;
+    parent->resize(n.VertexStart());
+    for (PetscInt c = 0; c < n.VertexStart(); ++c) (*parent)[c] = c / n.CellsPer();
   }
   *fine = dm;
   PetscFunctionReturn(0);

@@ -17,8 +17,8 @@
 namespace signorini {
 
 enum class Diagonal { Slash, Backslash, Crossed };
-// How a uniform refinement is made: Direct builds the fine DMPlex from the coarse one (triangles; see
-// refine.h), Transform uses PETSc's DMPlexTransform (always for tetrahedra). Both give the same mesh.
+// How a uniform refinement is made: Direct builds the fine DMPlex from the coarse one (see refine.h),
+// Transform uses PETSc's DMPlexTransform. Both give the same mesh.
 enum class Refinement { Direct, Transform };
 
 struct MeshOptions {

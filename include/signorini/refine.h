@@ -1,15 +1,16 @@
-// Uniform (regular) refinement of a distributed triangle mesh, built directly as a DMPlex.
+// Uniform (regular) refinement of a distributed triangle or tetrahedron mesh, built directly as a DMPlex.
 //
 // PETSc 3.18's DMPlexTransformApply makes the same mesh through a general cell-transform framework: it
 // inserts every new point into a cell-type hash, copies and sorts every label into the coordinate DM, and
 // looks each new point up through the transform; at 2D N = 2048 that is 15 s, most of the set-up. Here
 // the numbering of the fine points is arithmetic in the coarse ones (a vertex stays a vertex, an edge
-// gives its midpoint and two halves, a triangle four triangles and three interior edges), so the cones,
-// the point star forest and the labels are written in one pass each, and the cell-type label is made of
-// stride index sets.
+// gives its midpoint and two halves, a triangle four triangles and three interior edges, a tetrahedron
+// eight tetrahedra, eight interior faces and one interior edge), so the cones, the point star forest and
+// the labels are written in one pass each, and the cell-type label is made of stride index sets.
 //
-// Each triangle is cut at its edge midpoints into three corner triangles and the middle one, as in
-// PETSc's regular refinement; every child keeps the orientation of its parent.
+// The mesh is the one PETSc's regular refinement makes: each triangle is cut at its edge midpoints into
+// three corners and the middle one; each tetrahedron into four corners and an octahedron, which is cut
+// into four along the same diagonal PETSc chooses. Every child keeps the orientation of its parent.
 #pragma once
 
 #include "signorini/common.h"
@@ -18,8 +19,9 @@
 
 namespace signorini {
 
-// Collective. `coarse` must be an interpolated 2D simplex DMPlex (any distribution, overlap 0). If
-// `parent` is given, parent[c] is the coarse cell (as c - cStart) of fine cell c (fine cells start at 0).
-PetscErrorCode RefineTriangles(DM coarse, DM *fine, std::vector<PetscInt> *parent);
+// Collective. `coarse` must be an interpolated simplex DMPlex of dimension 2 or 3 (any distribution,
+// overlap 0). If `parent` is given, parent[c] is the coarse cell (as c - cStart) of fine cell c (fine
+// cells start at 0).
+PetscErrorCode RefineSimplices(DM coarse, DM *fine, std::vector<PetscInt> *parent);
 
 } // namespace signorini
