@@ -6,6 +6,7 @@
 
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdarg>
 #include <cstdio>
@@ -13,6 +14,22 @@
 #include <cstring>
 
 namespace signorini {
+
+PetscErrorCode OwnershipRanges(MPI_Comm comm, PetscInt numOwned, std::vector<PetscInt> &ranges)
+{
+  PetscMPIInt size;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  ranges.assign(size + 1, 0);
+  PetscCallMPI(MPI_Allgather(&numOwned, 1, MPIU_INT, ranges.data() + 1, 1, MPIU_INT, comm));
+  for (PetscMPIInt p = 0; p < size; ++p) ranges[p + 1] += ranges[p];
+  PetscFunctionReturn(0);
+}
+
+PetscMPIInt OwnerOf(const std::vector<PetscInt> &ranges, PetscInt g)
+{
+  return (PetscMPIInt)(std::upper_bound(ranges.begin(), ranges.end(), g) - ranges.begin() - 1);
+}
 
 std::string Format(const char *fmt, ...)
 {

@@ -3,8 +3,6 @@
 #include <petscdmshell.h>
 #include <petscsf.h>
 
-#include <algorithm>
-
 namespace signorini {
 
 namespace {
@@ -105,19 +103,17 @@ PetscErrorCode LayoutCreateFromDM(DM dm, DM *layout)
   MPI_Comm     comm = PetscObjectComm((PetscObject)dm);
   PetscSection local, global;
   PetscInt     pStart, pEnd;
-  PetscMPIInt  rank, size;
+  PetscMPIInt  rank;
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_rank(comm, &rank));
-  PetscCallMPI(MPI_Comm_size(comm, &size));
   PetscCall(DMGetLocalSection(dm, &local));
   PetscCall(DMGetGlobalSection(dm, &global));
   auto *L = new Layout;
   PetscCall(PetscSectionGetStorageSize(local, &L->numLocal));
   PetscCall(PetscSectionGetConstrainedStorageSize(global, &L->numOwned));
   // The owner of a global index, from the ranges of all ranks; a ghost's root is its owner's offset.
-  std::vector<PetscInt> ranges(size + 1, 0);
-  PetscCallMPI(MPI_Allgather(&L->numOwned, 1, MPIU_INT, ranges.data() + 1, 1, MPIU_INT, comm));
-  for (PetscMPIInt p = 0; p < size; ++p) ranges[p + 1] += ranges[p];
+  std::vector<PetscInt> ranges;
+  PetscCall(OwnershipRanges(comm, L->numOwned, ranges));
   const PetscInt           rstart = ranges[rank];
   std::vector<PetscInt>    leaves;
   std::vector<PetscSFNode> roots;
@@ -135,7 +131,7 @@ PetscErrorCode LayoutCreateFromDM(DM dm, DM *layout)
         continue;
       }
       const PetscInt    g     = -(goff + 1) + d; // PETSc's encoding of a DOF another rank owns
-      const PetscMPIInt owner = (PetscMPIInt)(std::upper_bound(ranges.begin(), ranges.end(), g) - ranges.begin() - 1);
+      const PetscMPIInt owner = OwnerOf(ranges, g);
       leaves.push_back(loff + d);
       roots.push_back({owner, g - ranges[owner]});
     }

@@ -402,24 +402,17 @@ PetscErrorCode LabelFaces(DM dm, DMLabel label, PetscInt value, std::vector<Pets
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode MeshRefine(DM coarse, DM *fine, std::vector<PetscInt> *parent, Refinement how)
+// PETSc's regular refinement. The transform is kept until the parent map is read: it knows the source
+// point of every new point.
+static PetscErrorCode RefineWithTransform(DM coarse, DM *fine, std::vector<PetscInt> *parent)
 {
   DMPlexTransform tr;
   PetscFunctionBeginUser;
-  if (how == Refinement::Direct) {
-    PetscCall(RefineSimplices(coarse, fine, parent));
-    PetscCall(DMPlexSetRegularRefinement(*fine, PETSC_TRUE));
-    PetscCall(PetscObjectSetName((PetscObject)*fine, "mesh"));
-    PetscFunctionReturn(0);
-  }
-  // The transform is kept until the parent map is read: it knows the source point of every new point.
   PetscCall(DMPlexTransformCreate(PetscObjectComm((PetscObject)coarse), &tr));
   PetscCall(DMPlexTransformSetDM(tr, coarse));
   PetscCall(DMPlexTransformSetType(tr, DMPLEXREFINEREGULAR));
   PetscCall(DMPlexTransformSetUp(tr));
   PetscCall(DMPlexTransformApply(tr, coarse, fine));
-  PetscCall(DMPlexSetRegularRefinement(*fine, PETSC_TRUE));
-  PetscCall(PetscObjectSetName((PetscObject)*fine, "mesh"));
   if (parent) {
     PetscInt fStart, fEnd, cStart;
     PetscCall(DMPlexGetHeightStratum(coarse, 0, &cStart, NULL));
@@ -433,6 +426,16 @@ PetscErrorCode MeshRefine(DM coarse, DM *fine, std::vector<PetscInt> *parent, Re
     }
   }
   PetscCall(DMPlexTransformDestroy(&tr));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode MeshRefine(DM coarse, DM *fine, std::vector<PetscInt> *parent, Refinement how)
+{
+  PetscFunctionBeginUser;
+  if (how == Refinement::Direct) PetscCall(RefineSimplices(coarse, fine, parent));
+  else PetscCall(RefineWithTransform(coarse, fine, parent));
+  PetscCall(DMPlexSetRegularRefinement(*fine, PETSC_TRUE));
+  PetscCall(PetscObjectSetName((PetscObject)*fine, "mesh"));
   PetscFunctionReturn(0);
 }
 

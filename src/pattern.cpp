@@ -54,12 +54,6 @@ static void ForEachColumn(const Space &space, const DofCells &dc, PetscInt row, 
   }
 }
 
-// The rank owning global row g, given the ownership ranges (ranges[p] .. ranges[p + 1] on rank p).
-static PetscMPIInt OwnerOf(const std::vector<PetscInt> &ranges, PetscInt g)
-{
-  return (PetscMPIInt)(std::upper_bound(ranges.begin(), ranges.end(), g) - ranges.begin() - 1);
-}
-
 // Sends records (row, ncols, cols...), one list per destination rank; returns those this rank received.
 static PetscErrorCode ExchangeRecords(MPI_Comm comm, const std::vector<std::vector<PetscInt>> &send, std::vector<PetscInt> &received)
 {
@@ -148,9 +142,8 @@ PetscErrorCode ComputeRowCounts(const Space &space, RowCounts &counts)
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_size(comm, &size));
   PetscCallMPI(MPI_Comm_rank(comm, &rank));
-  std::vector<PetscInt> ranges(size + 1, 0), global, received;
-  PetscCallMPI(MPI_Allgather(&space.numOwned, 1, MPIU_INT, ranges.data() + 1, 1, MPIU_INT, comm));
-  for (PetscMPIInt p = 0; p < size; ++p) ranges[p + 1] += ranges[p];
+  std::vector<PetscInt> ranges, global, received;
+  PetscCall(OwnershipRanges(comm, space.numOwned, ranges));
   const PetscInt rstart = ranges[rank], rend = ranges[rank + 1];
   PetscCall(GlobalIndices(space, global));
   if (space.element == Element::CR) {

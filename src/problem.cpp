@@ -6,6 +6,15 @@
 
 namespace signorini {
 
+// Without a Dirichlet or a contact part, u is determined only up to a constant.
+static PetscErrorCode CheckDetermined(MPI_Comm comm, const Problem &p)
+{
+  PetscFunctionBeginUser;
+  if (p.dirichlet.empty() && p.contact.empty())
+    SIGNORINI_INPUT_ERROR(comm, "options -bc_dirichlet/-bc_contact: the scene has neither a Dirichlet nor a contact part, so u is not determined (singular problem)");
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode ProblemFromCommandLine(MPI_Comm comm, Problem &p)
 {
   char      scene[256] = "custom", dir[256] = "", neu[256] = "", con[256] = "";
@@ -36,8 +45,7 @@ PetscErrorCode ProblemFromCommandLine(MPI_Comm comm, Problem &p)
       for (PetscInt v : *parts[a].second)
         if (std::count(parts[b].second->begin(), parts[b].second->end(), v))
           SIGNORINI_INPUT_ERROR(comm, "options %s and %s: boundary part %" PetscInt_FMT " is named in both", parts[a].first, parts[b].first, v);
-  if (p.dirichlet.empty() && p.contact.empty())
-    SIGNORINI_INPUT_ERROR(comm, "options -bc_dirichlet/-bc_contact: the scene has neither a Dirichlet nor a contact part, so u is not determined (singular problem)");
+  PetscCall(CheckDetermined(comm, p));
 
   PetscCall(Expression::Create(comm, "-f", f, 1, p.f));
   PetscCall(Expression::Create(comm, "-g", g, 1, p.g));
@@ -53,8 +61,7 @@ PetscErrorCode ProblemFromCommandLine(MPI_Comm comm, Problem &p)
 PetscErrorCode ProblemSetUp(MPI_Comm comm, PetscInt dim, Problem &p)
 {
   PetscFunctionBeginUser;
-  if (p.dirichlet.empty() && p.contact.empty())
-    SIGNORINI_INPUT_ERROR(comm, "options -bc_dirichlet/-bc_contact: the scene has neither a Dirichlet nor a contact part, so u is not determined (singular problem)");
+  PetscCall(CheckDetermined(comm, p));
   if (p.exact) PetscCall(Expression::Create(comm, "-exact_grad", p.exactGradText, (int)dim, p.exactGrad));
   PetscFunctionReturn(0);
 }

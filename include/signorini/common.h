@@ -28,6 +28,12 @@ PetscErrorCode CheckWritable(MPI_Comm comm, const std::string &option, const std
 // Parse a comma-separated list of integers ("1,3,4"); empty string gives an empty list.
 PetscErrorCode ParseIntList(MPI_Comm comm, const std::string &option, const std::string &text, std::vector<PetscInt> &values);
 
+// Collective: the ownership ranges of a distributed index set, ranges[p] .. ranges[p + 1] on rank p, from
+// each rank's count of owned indices.
+PetscErrorCode OwnershipRanges(MPI_Comm comm, PetscInt numOwned, std::vector<PetscInt> &ranges);
+// The rank owning global index g, given the ranges of OwnershipRanges.
+PetscMPIInt OwnerOf(const std::vector<PetscInt> &ranges, PetscInt g);
+
 // Collective: wall seconds since t0 (from PetscTime), the maximum over the ranks of comm.
 PetscErrorCode SecondsSince(MPI_Comm comm, PetscLogDouble t0, double *seconds);
 
