@@ -89,25 +89,32 @@ static void BoxCellList(const MeshOptions &o, std::vector<PetscInt> &cells, std:
         }
       }
   } else {
-    // Kuhn (Freudenthal) split: one tetrahedron per monotone path from corner 000 to corner 111.
+    // Kuhn (Freudenthal) split: one tetrahedron per monotone path x0 = corner 000, x1, x2, x3 = corner 111.
+    // Listed as (x0, x2, x1, x3): both refinements cut the inner octahedron along the diagonal between the
+    // midpoints of v0v1 and v2v3, here m02-m13, and that cut makes the eight children the Kuhn cells of the
+    // box with twice the cells (also in their own refinements): a refined Kuhn box is the finer Kuhn box
+    // (tests/unit_fastpath.cpp), which the fast path of -box_faces relies on. The orientation fix below
+    // swaps v2 and v3, which keeps the two pairs.
     const PetscInt perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
     for (PetscInt k = 0; k < L; ++k)
       for (PetscInt j = 0; j < M; ++j)
         for (PetscInt i = 0; i < N; ++i)
           for (const auto &p : perms) {
-            PetscInt pos[3] = {i, j, k};
-            cells.push_back(vid(pos[0], pos[1], pos[2]));
+            PetscInt pos[3] = {i, j, k}, x[4];
+            x[0] = vid(pos[0], pos[1], pos[2]);
             for (PetscInt s = 0; s < 3; ++s) {
               pos[p[s]]++;
-              cells.push_back(vid(pos[0], pos[1], pos[2]));
+              x[s + 1] = vid(pos[0], pos[1], pos[2]);
             }
+            cells.insert(cells.end(), {x[0], x[2], x[1], x[3]});
           }
   }
   const PetscInt nc = (PetscInt)cells.size() / (dim + 1);
   for (PetscInt c = 0; c < nc; ++c) {
     PetscInt *v   = &cells[c * (dim + 1)];
     PetscReal det = SimplexDet(dim, v, X);
-    if ((dim == 2 && det < 0) || (dim == 3 && det > 0)) std::swap(v[1], v[2]);
+    if (dim == 2 && det < 0) std::swap(v[1], v[2]);
+    if (dim == 3 && det > 0) std::swap(v[2], v[3]);
   }
 }
 
