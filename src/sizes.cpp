@@ -19,14 +19,18 @@ namespace {
 //   this build: 2D CR 787 456 DOFs 547, 2D P1 263 169 DOFs 707, 3D P1 117 649 DOFs 1808, 3D CR 169 344
 //   DOFs 549 B per DOF.
 // - kMeshBytesPerPoint: the DMPlex of a refined level (cones, supports, orientations, their sections,
-//   coordinates, labels), measured as the difference of a study, which keeps its meshes, and a single run
-//   of the same finest size (see the report of issue 16).
+//   coordinates, labels). A study keeps its meshes: paper-5.1-3d CR -box_faces 16 -study_levels 1
+//   -reference_refine 1 (CR reference) peaked 62 MB above the single run on the same finest mesh
+//   (-box_faces 32, 284 MB), with 0.96 M points in its two levels: 64 B per point; rounded up.
+// - 64-bit PetscInt makes every index twice as wide: 2D CR 787 456 DOFs 659 instead of 547 B per DOF,
+//   3D CR 399 360 DOFs 309.6 instead of 284.4 MB (build64, issue 16): a factor 1.2.
 constexpr double kFixedBytes        = 50e6;
-constexpr double kMeshBytesPerPoint = 100;
+constexpr double kMeshBytesPerPoint = 80;
+constexpr double kIndexWidthFactor  = sizeof(PetscInt) == 8 ? 1.2 : 1.0;
 double           BytesPerDof(PetscInt dim, Element e)
 {
-  if (dim == 2) return e == Element::P1 ? 780 : 600;
-  return e == Element::P1 ? 2000 : 610;
+  const double bytes = dim == 2 ? (e == Element::P1 ? 780 : 600) : (e == Element::P1 ? 2000 : 610);
+  return kIndexWidthFactor * bytes;
 }
 
 // Physical memory of this node, or less where a control group limits this process.
@@ -146,14 +150,14 @@ PetscErrorCode CheckSizes(MPI_Comm comm, const MeshOptions &o, const MeshCounts 
     variable = std::max(variable, PeakBytes(finest, e, 1) - kFixedBytes);
   }
   if (study.levels > 0) // every level's mesh stays alive during the study
-    for (PetscInt l = 0; l <= extra; ++l) variable += kMeshBytesPerPoint * Refined(coarse, o.refine + l).Points();
+    for (PetscInt l = 0; l <= extra; ++l) variable += kIndexWidthFactor * kMeshBytesPerPoint * Refined(coarse, o.refine + l).Points();
   perRank = kFixedBytes + variable / size;
 
   // 32-bit PetscInt indexes each rank's mesh points and cone arrays (the coarse mesh is on rank 0 before
   // it is distributed), the global DOFs, and each rank's matrix nonzeros.
   const double limit = (double)PETSC_MAX_INT;
-  const double rankPoints = std::max({coarse.Points(), coarse.ConeEntries(), finest.Points() / size, finest.ConeEntries() / size});
-  const bool   indices    = sizeof(PetscInt) < 8 && (rankPoints > limit || dofs > limit || nonzeros / size > limit);
+  const double rankPoints = std::max(coarse.Points(), finest.Points() / size), rankCones = std::max(coarse.ConeEntries(), finest.ConeEntries() / size);
+  const bool   indices    = sizeof(PetscInt) < 8 && (rankPoints > limit || rankCones > limit || dofs > limit || nonzeros / size > limit);
 
   // Memory: each rank gets an equal share of its node; the job, the memory of all its nodes.
   PetscCallMPI(MPI_Comm_split_type(comm, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node));
@@ -166,9 +170,9 @@ PetscErrorCode CheckSizes(MPI_Comm comm, const MeshOptions &o, const MeshCounts 
   const bool memory = o.memoryCheck && (perRank > minShare || size * kFixedBytes + variable > total);
 
   const std::string mesh = Format("%s gives a finest mesh of %.3g cells with %.3g DOFs", Asked(o, study).c_str(), finest.c, dofs);
-  const std::string need = Format("it needs about %s of memory (%s per rank), more than the %s of this machine (%s per rank of %d on a node); use fewer refinements or more nodes, or -memory_check 0 to run anyway", GB(size * kFixedBytes + variable).c_str(), GB(perRank).c_str(), GB(total).c_str(), GB(minShare).c_str(), (int)nodeSize);
+  const std::string need = Format("it needs about %s of memory (%s per rank), more than the %s of the nodes of this run (%s per rank, %d rank(s) on a node); use fewer refinements or more nodes, or -memory_check 0 to run anyway", GB(size * kFixedBytes + variable).c_str(), GB(perRank).c_str(), GB(total).c_str(), GB(minShare).c_str(), (int)nodeSize);
   if (indices)
-    SIGNORINI_INPUT_ERROR(comm, "sizes: %s, %.3g mesh points per rank and %.3g matrix nonzeros per rank on %d rank(s), beyond the 32-bit indices of this PETSc build (at most %" PetscInt_FMT "); use fewer refinements, or the 64-bit PETSc build (Debian libpetsc64-real3.18-dev, cmake -DSIGNORINI_PETSC64=ON)%s", mesh.c_str(), rankPoints, nonzeros / size, (int)size, PETSC_MAX_INT,
+    SIGNORINI_INPUT_ERROR(comm, "sizes: %s, %.3g mesh points (%.3g cone entries) and %.3g matrix nonzeros per rank on %d rank(s), beyond the 32-bit indices of this PETSc build (at most %" PetscInt_FMT "); use fewer refinements, or the 64-bit PETSc build (Debian libpetsc64-real3.18-dev, cmake -DSIGNORINI_PETSC64=ON)%s", mesh.c_str(), rankPoints, rankCones, nonzeros / size, (int)size, PETSC_MAX_INT,
                           memory ? ("; also, " + need).c_str() : "");
   if (memory) SIGNORINI_INPUT_ERROR(comm, "sizes: %s; %s", mesh.c_str(), need.c_str());
   PetscFunctionReturn(0);
