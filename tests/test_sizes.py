@@ -53,6 +53,9 @@ refused(B + ["-refine", "12"], ["-refine 12"], True)
 refused(B + ["-box_faces", "100000,100000"], ["box 100000x100000"], True)
 refused(B + ["-refine", "40"], ["-refine 40"], True, ranks=2)
 refused(scene("paper-5.1-3d") + ["-box_faces", "8", "-refine", "9"], ["box 8x8x8", "-refine 9"], True)
+# A Gmsh file: predicted from the read coarse mesh, before it is distributed.
+refused(scene("paper-5.1") + ["-mesh_file", os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "square.msh"), "-refine", "14", "-bc_dirichlet", "1", "-bc_contact", "2", "-bc_neumann", ""],
+        ["square.msh", "-refine 14"], True)
 # -memory_check 0 does not lift the index limit, and leaves memory out of the line.
 out = refused(B + ["-refine", "12", "-memory_check", "0"], ["-refine 12"], True)
 c.check("memory" not in out, "-refine 12 -memory_check 0: the line does not speak of memory")
