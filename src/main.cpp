@@ -15,6 +15,7 @@ static const char help[] =
 #include "signorini/output.h"
 #include "signorini/problem.h"
 #include "signorini/report.h"
+#include "signorini/sizes.h"
 #include "signorini/space.h"
 #include "signorini/stages.h"
 #include "signorini/study.h"
@@ -80,7 +81,9 @@ static PetscErrorCode Run(MPI_Comm comm)
   const bool nested = s.nested.enabled && s.mesh.refine > 0 && s.nested.levels != 0 && s.study.levels == 0 && !s.problem.contact.empty();
   MeshLevels levels;
   // The scene is checked against the coarse mesh (dimension, boundary parts) before the refinement.
-  PetscCall(MeshCreate(comm, s.mesh, &mesh, meshInfo, nested ? &levels : nullptr, s.nested.levels, [&](DM coarse) { return ProblemCheckMesh(coarse, s.problem); }));
+  // The sizes are checked against the coarse mesh before it is built (box) or distributed (file).
+  PetscCall(MeshCreate(comm, s.mesh, &mesh, meshInfo, nested ? &levels : nullptr, s.nested.levels, [&](DM coarse) { return ProblemCheckMesh(coarse, s.problem); },
+                       [&](const MeshCounts &coarse) { return CheckSizes(comm, s.mesh, coarse, s.element, s.study); }));
   PetscInt dim;
   PetscCall(DMGetDimension(mesh, &dim));
   if (s.study.levels > 0) {
@@ -132,7 +135,7 @@ static PetscErrorCode Run(MPI_Comm comm)
   report.mesh          = meshInfo.description;
   report.loadRule      = s.assembly.centroid ? "centroid" : Format("accurate (degree %d)", (int)s.assembly.loadDegree);
   report.dim           = dim;
-  report.refine        = s.mesh.refine;
+  report.refine        = s.mesh.refine - s.mesh.coarsened; // as asked: the box's own refinements are in report.mesh
   report.coarseCells   = meshInfo.coarseCells;
   report.cells         = meshInfo.cells;
   report.cellsPerRank  = meshInfo.cellsPerRank;
