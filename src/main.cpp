@@ -12,6 +12,7 @@ static const char help[] =
 #include "signorini/error.h"
 #include "signorini/mesh.h"
 #include "signorini/nested.h"
+#include "signorini/options.h"
 #include "signorini/output.h"
 #include "signorini/problem.h"
 #include "signorini/report.h"
@@ -21,6 +22,7 @@ static const char help[] =
 #include "signorini/study.h"
 
 #include <cstdio>
+#include <functional>
 
 using namespace signorini;
 
@@ -38,19 +40,27 @@ struct Settings {
   NestedOptions   nested;
 };
 
-static PetscErrorCode ReadSettings(MPI_Comm comm, Settings &s)
+// Under -help every component lists its options whatever else is on the command line: an error of one
+// component (an incomplete scene, a bad value) must not hide the options of the others.
+static PetscErrorCode ReadSettings(MPI_Comm comm, Settings &s, bool help)
 {
+  const std::function<PetscErrorCode()> readers[] = {
+    [&] { return MeshOptionsFromCommandLine(comm, s.mesh); },
+    [&] { return ElementFromCommandLine(comm, s.element); },
+    [&] { return ProblemFromCommandLine(comm, s.problem); },
+    [&] { return AssemblyOptionsFromCommandLine(comm, s.assembly); },
+    [&] { return ErrorOptionsFromCommandLine(comm, s.errorDegree); },
+    [&] { return ReportOptionsFromCommandLine(comm, s.summaryFile); },
+    [&] { return OutputOptionsFromCommandLine(comm, s.output); },
+    [&] { return StudyOptionsFromCommandLine(comm, s.study); },
+    [&] { return SolveOptionsFromCommandLine(comm, s.solve); },
+    [&] { return NestedOptionsFromCommandLine(comm, s.nested); },
+  };
   PetscFunctionBeginUser;
-  PetscCall(MeshOptionsFromCommandLine(comm, s.mesh));
-  PetscCall(ElementFromCommandLine(comm, s.element));
-  PetscCall(ProblemFromCommandLine(comm, s.problem));
-  PetscCall(AssemblyOptionsFromCommandLine(comm, s.assembly));
-  PetscCall(ErrorOptionsFromCommandLine(comm, s.errorDegree));
-  PetscCall(ReportOptionsFromCommandLine(comm, s.summaryFile));
-  PetscCall(OutputOptionsFromCommandLine(comm, s.output));
-  PetscCall(StudyOptionsFromCommandLine(comm, s.study));
-  PetscCall(SolveOptionsFromCommandLine(comm, s.solve));
-  PetscCall(NestedOptionsFromCommandLine(comm, s.nested));
+  for (const auto &read : readers) {
+    const PetscErrorCode ierr = read();
+    if (!help) PetscCall(OptionsAsInputError(comm, ierr));
+  }
   PetscFunctionReturn(0);
 }
 
@@ -69,12 +79,13 @@ static PetscErrorCode Run(MPI_Comm comm)
   PetscFunctionBeginUser;
   PetscCall(PetscTime(&start));
   PetscCall(StagesRegister());
-  PetscCall(OptionsAsInputError(comm, ReadSettings(comm, s)));
   PetscCall(PetscOptionsHasHelp(NULL, &help));
+  PetscCall(ReadSettings(comm, s, help));
   if (help) {
-    PetscCall(SolverOptionsHelp(comm));
+    (void)SolverOptionsHelp(comm); // lists what it can; -help exits 0 whatever the options say
     PetscFunctionReturn(0);
   }
+  PetscCall(CheckUnknownOptions(comm)); // a mistyped option fails now, not after the run
 
   // mesh -> space -> assembly -> solve -> errors -> report -> output
   // Nested iteration needs the coarser levels of the refinement; a scene without contact is one linear solve.

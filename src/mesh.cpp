@@ -1,4 +1,5 @@
 #include "signorini/mesh.h"
+#include "signorini/options.h"
 #include "signorini/refine.h"
 #include "signorini/sizes.h"
 #include "signorini/stages.h"
@@ -14,44 +15,50 @@
 
 namespace signorini {
 
+// Counts and corners of the box: one value for every direction, or exactly one per direction.
+template <typename T>
+static PetscErrorCode BoxValues(MPI_Comm comm, const char *option, PetscInt dim, bool set, const std::vector<T> &given, T values[3])
+{
+  PetscFunctionBeginUser;
+  if (!set) PetscFunctionReturn(0);
+  if (given.size() != 1 && (PetscInt)given.size() != dim) SIGNORINI_INPUT_ERROR(comm, "option %s: %d values for a %dD box; give one value (all directions) or %d", option, (int)given.size(), (int)dim, (int)dim);
+  for (PetscInt d = 0; d < 3; ++d) values[d] = given.size() == 1 ? given[0] : d < dim ? given[d] : values[d];
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode MeshOptionsFromCommandLine(MPI_Comm comm, MeshOptions &o)
 {
-  char        file[PETSC_MAX_PATH_LEN] = "", part[64] = "metis";
-  const char *diagonals[]              = {"slash", "backslash", "crossed"};
-  const char *refinements[]            = {"direct", "transform"};
-  PetscInt    diag = (PetscInt)o.diagonal, nfaces = 3, nlo = 3, nhi = 3, how = (PetscInt)o.refinement;
-  PetscBool   setFaces = PETSC_FALSE, coarsen = o.coarsen ? PETSC_TRUE : PETSC_FALSE, memoryCheck = o.memoryCheck ? PETSC_TRUE : PETSC_FALSE;
-  PetscMPIInt size;
+  PetscInt               diag = (PetscInt)o.diagonal, how = (PetscInt)o.refinement;
+  bool                   setFaces = false, setLower = false, setUpper = false;
+  PetscMPIInt            size;
+  std::vector<PetscInt>  faces;
+  std::vector<PetscReal> lower, upper;
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Mesh options", "signorini");
-  PetscCall(PetscOptionsString("-mesh_file", "Gmsh .msh file (physical groups name boundary parts); default: built-in box", "", file, file, sizeof file, NULL));
-  PetscCall(PetscOptionsInt("-dim", "Dimension of the built-in box (2 or 3)", "", o.dim, &o.dim, NULL));
-  PetscCall(PetscOptionsIntArray("-box_faces", "Cells per direction of the box, e.g. 64,64 (built as the coarsest box that refines to it, see -box_coarsen)", "", o.faces, &nfaces, &setFaces));
-  PetscCall(PetscOptionsRealArray("-box_lower", "Lower corner of the box", "", o.lower, &nlo, NULL));
-  PetscCall(PetscOptionsRealArray("-box_upper", "Upper corner of the box", "", o.upper, &nhi, NULL));
-  PetscCall(PetscOptionsEList("-box_diagonal", "2D: how each square is cut: slash (0,0)-(1,1), backslash (1,0)-(0,1), crossed (4 triangles; built directly, without -box_coarsen)", "", diagonals, 3, diagonals[diag], &diag, NULL));
-  PetscCall(PetscOptionsBool("-box_coarsen", "Build the box as the coarsest box whose uniform refinement is the same mesh (slash, backslash, 3D), refined in parallel (0: build it on rank 0 as asked)", "", coarsen, &coarsen, NULL));
-  PetscCall(PetscOptionsInt("-refine", "Uniform refinements in parallel after distribution", "", o.refine, &o.refine, NULL));
-  PetscCall(PetscOptionsEList("-mesh_refinement", "How the mesh is refined: direct (the fine DMPlex built from the coarse one) or transform (PETSc's DMPlexTransform; the same mesh, slower)", "", refinements, 2, refinements[how], &how, NULL));
-  PetscCall(PetscOptionsBool("-memory_check", "Refuse, before building anything, a run whose predicted peak memory exceeds the memory of the machine (per rank: its node's memory over the ranks on the node)", "", memoryCheck, &memoryCheck, NULL));
-  PetscCall(PetscOptionsString("-mesh_partitioner", "metis (libmetis on the coarse cell graph) or a PetscPartitioner type (ptscotch, simple)", "", part, part, sizeof part, NULL));
+  PetscCall(OptionString(PetscOptionsObject, "-mesh_file", "Gmsh .msh file (physical groups name boundary parts); default: built-in box", o.file));
+  PetscCall(OptionInt(PetscOptionsObject, "-dim", "Dimension of the built-in box (2 or 3)", o.dim, 2, 3));
+  faces.assign(o.faces, o.faces + o.dim); // the defaults, as -help shows them
+  lower.assign(o.lower, o.lower + o.dim);
+  upper.assign(o.upper, o.upper + o.dim);
+  PetscCall(OptionIntList(PetscOptionsObject, "-box_faces", "Cells per direction of the box: one count for every direction (64) or one per direction (64,32); built as the coarsest box that refines to it, see -box_coarsen", faces, 1, PETSC_MAX_INT, &setFaces));
+  PetscCall(OptionRealList(PetscOptionsObject, "-box_lower", "Lower corner of the box: one coordinate for every direction or one per direction", lower, &setLower));
+  PetscCall(OptionRealList(PetscOptionsObject, "-box_upper", "Upper corner of the box: one coordinate for every direction or one per direction", upper, &setUpper));
+  PetscCall(OptionEList(PetscOptionsObject, "-box_diagonal", "2D: how each square is cut: slash (0,0)-(1,1), backslash (1,0)-(0,1), crossed (4 triangles; built directly, without -box_coarsen)", {"slash", "backslash", "crossed"}, diag));
+  PetscCall(OptionBool(PetscOptionsObject, "-box_coarsen", "Build the box as the coarsest box whose uniform refinement is the same mesh (slash, backslash, 3D), refined in parallel (0: build it on rank 0 as asked)", o.coarsen));
+  PetscCall(OptionInt(PetscOptionsObject, "-refine", "Uniform refinements in parallel after distribution", o.refine, 0, PETSC_MAX_INT));
+  PetscCall(OptionEList(PetscOptionsObject, "-mesh_refinement", "How the mesh is refined: direct (the fine DMPlex built from the coarse one) or transform (PETSc's DMPlexTransform; the same mesh, slower)", {"direct", "transform"}, how));
+  PetscCall(OptionBool(PetscOptionsObject, "-memory_check", "Refuse, before building anything, a run whose predicted peak memory exceeds the memory of the machine (per rank: its node's memory over the ranks on the node)", o.memoryCheck));
+  PetscCall(OptionString(PetscOptionsObject, "-mesh_partitioner", "metis (libmetis on the coarse cell graph) or a PetscPartitioner type (ptscotch, simple)", o.partitioner));
   PetscOptionsEnd();
-  o.file        = file;
-  o.partitioner = part;
-  o.diagonal    = (Diagonal)diag;
-  o.refinement  = (Refinement)how;
-  o.coarsen     = coarsen;
-  o.memoryCheck = memoryCheck;
+  o.diagonal   = (Diagonal)diag;
+  o.refinement = (Refinement)how;
   if (o.file.empty()) {
-    if (o.dim != 2 && o.dim != 3) SIGNORINI_INPUT_ERROR(comm, "option -dim: must be 2 or 3, got %" PetscInt_FMT, o.dim);
-    if (setFaces && nfaces == 1)
-      for (PetscInt d = 1; d < 3; ++d) o.faces[d] = o.faces[0]; // "-box_faces 16" means 16 in every direction
-    for (PetscInt d = 0; d < o.dim; ++d) {
-      if (o.faces[d] <= 0) SIGNORINI_INPUT_ERROR(comm, "option -box_faces: cell counts must be positive, got %" PetscInt_FMT " in direction %" PetscInt_FMT, o.faces[d], d);
+    PetscCall(BoxValues(comm, "-box_faces", o.dim, setFaces, faces, o.faces));
+    PetscCall(BoxValues(comm, "-box_lower", o.dim, setLower, lower, o.lower));
+    PetscCall(BoxValues(comm, "-box_upper", o.dim, setUpper, upper, o.upper));
+    for (PetscInt d = 0; d < o.dim; ++d)
       if (!(o.lower[d] < o.upper[d])) SIGNORINI_INPUT_ERROR(comm, "options -box_lower/-box_upper: lower %g is not below upper %g in direction %" PetscInt_FMT, (double)o.lower[d], (double)o.upper[d], d);
-    }
   }
-  if (o.refine < 0) SIGNORINI_INPUT_ERROR(comm, "option -refine: must be >= 0, got %" PetscInt_FMT, o.refine);
   PetscCallMPI(MPI_Comm_size(comm, &size));
   CoarsenBox(o, size);
   PetscFunctionReturn(0);
@@ -78,7 +85,7 @@ void CoarsenBox(MeshOptions &o, PetscMPIInt ranks)
     return true;
   };
   PetscInt k = 0;
-  while (halves(k) && cells(k + 1) >= kMinCoarseCellsPerRank * (PetscInt64)ranks) ++k;
+  while (halves(k) && cells(k + 1) >= kMinCoarseCellsPerRank * (PetscInt64)ranks && o.refine + k < PETSC_MAX_INT) ++k;
   for (PetscInt d = 0; d < o.dim; ++d) o.faces[d] >>= k;
   o.refine += k;
   o.coarsened = k;
