@@ -46,8 +46,8 @@ static PetscErrorCode ReadSettings(MPI_Comm comm, Settings &s)
   PetscCall(AssemblyOptionsFromCommandLine(comm, s.assembly));
   PetscCall(ErrorOptionsFromCommandLine(comm, s.errorDegree));
   PetscCall(ReportOptionsFromCommandLine(comm, s.summaryFile));
-  PetscCall(OutputOptionsFromCommandLine(comm, s.output));
-  PetscCall(StudyOptionsFromCommandLine(comm, s.study));
+  PetscCall(OutputOptionsFromCommandLine(comm, s.element, s.problem, s.output));
+  PetscCall(StudyOptionsFromCommandLine(comm, s.problem, s.study));
   PetscCall(SolveOptionsFromCommandLine(comm, s.solve));
   PetscCall(NestedOptionsFromCommandLine(comm, s.nested));
   PetscFunctionReturn(0);
@@ -142,7 +142,7 @@ static PetscErrorCode Run(MPI_Comm comm)
   report.contactDofs   = space.numContactGlobal;
   report.ranks         = (PetscInt)meshInfo.cellsPerRank.size();
   report.hasExact      = s.problem.HasExact();
-  if (!s.output.file.empty()) PetscCall(OutputEnd(space, u, output));
+  if (!s.output.file.empty()) PetscCall(OutputEnd(space, s.problem, sys, u, output));
   PetscCall(ReportGatherTimes(comm, start, report));
   PetscCall(ReportGatherMemory(comm, sys.A, report));
   PetscCall(ReportPrint(comm, report));

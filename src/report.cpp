@@ -17,7 +17,7 @@ PetscErrorCode ReportOptionsFromCommandLine(MPI_Comm comm, std::string &summaryF
   PetscCall(PetscOptionsString("-summary", "Write the run's figures as JSON to this file", "", file, file, sizeof file, NULL));
   PetscOptionsEnd();
   summaryFile = file;
-  if (!summaryFile.empty()) PetscCall(CheckWritable(comm, "-summary", summaryFile));
+  if (!summaryFile.empty()) PetscCall(FileClaim(comm, "-summary", summaryFile));
   PetscFunctionReturn(0);
 }
 
@@ -117,29 +117,6 @@ static std::string Str(const std::string &s)
     out += c;
   }
   return out + "\"";
-}
-
-PetscErrorCode WriteFileAtomically(MPI_Comm comm, const std::string &file, const std::string &text)
-{
-  PetscMPIInt rank;
-  std::string problem;
-  PetscFunctionBeginUser;
-  PetscCallMPI(MPI_Comm_rank(comm, &rank));
-  if (rank == 0) {
-    const std::string tmp = file + ".tmp";
-    FILE             *fp  = std::fopen(tmp.c_str(), "w");
-    if (!fp) problem = Format("output file '%s': cannot be written", file.c_str());
-    else {
-      bool ok = std::fwrite(text.data(), 1, text.size(), fp) == text.size();
-      ok      = (std::fclose(fp) == 0) && ok;
-      if (!ok || std::rename(tmp.c_str(), file.c_str()) != 0) {
-        std::remove(tmp.c_str());
-        problem = Format("output file '%s': writing failed", file.c_str());
-      }
-    }
-  }
-  PetscCall(CheckAll(comm, problem.empty(), problem));
-  PetscFunctionReturn(0);
 }
 
 PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string &file)

@@ -8,7 +8,10 @@
 
 namespace signorini {
 
-PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, StudyOptions &o)
+static std::string   ProfileBase(const std::string &prefix, Element e) { return prefix + "-" + ElementName(e); }
+static OutputOptions ProfileOutput(const std::string &prefix, Element e, const Problem &problem) { return OutputOptions{ProfileBase(prefix, e) + ".h5", problem.HasContact(), e == Element::CR}; }
+
+PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, const Problem &problem, StudyOptions &o)
 {
   const char *names[] = {"p1", "cr"};
   PetscInt    ref     = (PetscInt)o.referenceElement;
@@ -34,8 +37,12 @@ PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, StudyOptions &o)
   }
   if (o.levels < 0) SIGNORINI_INPUT_ERROR(comm, "option -study_levels: must be >= 0, got %" PetscInt_FMT, o.levels);
   if (o.referenceRefine < 0) SIGNORINI_INPUT_ERROR(comm, "option -reference_refine: must be >= 0, got %" PetscInt_FMT, o.referenceRefine);
-  if (!o.file.empty()) PetscCall(CheckWritable(comm, "-study_output", o.file));
-  if (!o.profiles.empty()) PetscCall(CheckWritable(comm, "-study_profiles", o.profiles + "-" + ElementName(o.elements.front()) + ".h5"));
+  if (!o.file.empty()) PetscCall(FileClaim(comm, "-study_output", o.file));
+  if (!o.profiles.empty())
+    for (Element e : o.elements) { // the files SolveOn writes on the finest level
+      PetscCall(OutputClaim(comm, "-study_profiles", ProfileOutput(o.profiles, e, problem)));
+      if (problem.HasContact()) PetscCall(FileClaim(comm, "-study_profiles", ProfileBase(o.profiles, e) + "-contact.csv"));
+    }
   PetscFunctionReturn(0);
 }
 
@@ -54,9 +61,8 @@ static PetscErrorCode SolveOn(DM mesh, Element element, const Problem &problem, 
   PetscCall(PetscTime(&t1));
   solveSeconds = t1 - t0;
   if (!profile.empty()) {
-    const std::string base = profile + "-" + ElementName(element);
-    PetscCall(WriteSolution(space, *u, OutputOptions{base + ".h5"}));
-    if (problem.HasContact()) PetscCall(WriteContactProfile(space, problem, sys, *u, base + "-contact.csv"));
+    PetscCall(WriteSolution(space, problem, sys, *u, ProfileOutput(profile, element, problem)));
+    if (problem.HasContact()) PetscCall(WriteContactProfile(space, problem, sys, *u, ProfileBase(profile, element) + "-contact.csv"));
   }
   PetscCall(SystemDestroy(sys));
   PetscFunctionReturn(0);

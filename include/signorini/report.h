@@ -5,6 +5,7 @@
 
 #include "signorini/contact.h"
 #include "signorini/error.h"
+#include "signorini/files.h"
 #include "signorini/mesh.h"
 #include "signorini/stages.h"
 
@@ -35,7 +36,5 @@ PetscErrorCode PeakRSS(MPI_Comm comm, double *sum, double *max);
 PetscErrorCode ReportGatherMemory(MPI_Comm comm, Mat A, Report &r);
 PetscErrorCode ReportPrint(MPI_Comm comm, const Report &r);
 PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string &file);
-// Writes text on rank 0 to `file` through a temporary name and a rename; collective, fails on all ranks.
-PetscErrorCode WriteFileAtomically(MPI_Comm comm, const std::string &file, const std::string &text);
 
 } // namespace signorini
