@@ -95,9 +95,10 @@ std::string BaseName(const std::string &path)
 // The file that writing `path` changes: symbolic links in the last component are followed (a link that
 // points to nothing yet gives the path it points to), and the directory is made absolute and free of
 // links, so that two names of one file compare equal. Rank 0 only. Returns the reason on failure.
-std::string Resolve(const std::string &path, std::string &file)
+std::string Resolve(const std::string &path, std::string &file, bool *followed = nullptr)
 {
   std::string p = path;
+  if (followed) *followed = false;
   for (int hops = 0;; ++hops) {
     struct stat st;
     if (lstat(p.c_str(), &st) != 0 || !S_ISLNK(st.st_mode)) break;
@@ -106,6 +107,7 @@ std::string Resolve(const std::string &path, std::string &file)
     if (hops == 40 || n < 0) return "is a symbolic link that cannot be followed";
     target[n] = '\0';
     p         = target[0] == '/' ? std::string(target) : DirName(p) + "/" + target;
+    if (followed) *followed = true;
   }
   char dir[PATH_MAX];
   if (!realpath(DirName(p).c_str(), dir)) return Format("cannot be written: its directory '%s' %s", DirName(p).c_str(), errno == ENOENT ? "does not exist" : std::strerror(errno));
@@ -151,9 +153,10 @@ int CreateTemporary(const std::string &file, std::string &name)
 // Why `path` may not be written, or "" (rank 0). `file` is the resolved file.
 std::string WhyNotWritable(const std::string &path, std::string &file)
 {
-  std::string why = Resolve(path, file);
+  bool        link;
+  std::string why = Resolve(path, file, &link);
   if (!why.empty()) return why;
-  const std::string through = file == path || BaseName(path).empty() ? "" : Format(" (it leads to '%s')", file.c_str());
+  const std::string through = link ? Format(" (the symbolic link leads to '%s')", file.c_str()) : "";
   struct stat       st;
   if (stat(file.c_str(), &st) == 0) {
     if (S_ISDIR(st.st_mode)) return "is a directory, not a file" + through;
@@ -197,7 +200,8 @@ PetscErrorCode FileClaim(MPI_Comm comm, const std::string &option, const std::st
   for (const Claim &c : claims)
     if (c.file == file) {
       if (c.option == option) SIGNORINI_INPUT_ERROR(comm, "option %s: '%s' and '%s' are the same file, which the run would write twice", option.c_str(), c.path.c_str(), path.c_str());
-      SIGNORINI_INPUT_ERROR(comm, "options %s and %s: both write to '%s'%s", c.option.c_str(), option.c_str(), path.c_str(), c.path == path ? "" : Format(" (the file of '%s')", c.path.c_str()).c_str());
+      if (c.path == path) SIGNORINI_INPUT_ERROR(comm, "options %s and %s: both write to '%s'", c.option.c_str(), option.c_str(), path.c_str());
+      SIGNORINI_INPUT_ERROR(comm, "options %s and %s: '%s' and '%s' are the same file, which both would write", c.option.c_str(), option.c_str(), c.path.c_str(), path.c_str());
     }
   claims.push_back({option, path, file});
   PetscFunctionReturn(0);

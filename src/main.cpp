@@ -142,6 +142,7 @@ static PetscErrorCode Run(MPI_Comm comm)
   report.contactDofs   = space.numContactGlobal;
   report.ranks         = (PetscInt)meshInfo.cellsPerRank.size();
   report.hasExact      = s.problem.HasExact();
+  ReportRecordExpressions(s.problem, report);
   if (!s.output.file.empty()) PetscCall(OutputEnd(space, s.problem, sys, u, output));
   PetscCall(ReportGatherTimes(comm, start, report));
   PetscCall(ReportGatherMemory(comm, sys.A, report));

@@ -114,9 +114,29 @@ static std::string Str(const std::string &s)
   std::string out = "\"";
   for (char c : s) {
     if (c == '"' || c == '\\') out += '\\';
-    out += c;
+    if ((unsigned char)c < 0x20) out += Format("\\u%04x", (unsigned)c); // a newline in an argument
+    else out += c;
   }
   return out + "\"";
+}
+
+void ReportRecordExpressions(const Problem &p, Report &r)
+{
+  r.expressions.clear();
+  for (const Expression *e : {p.f.get(), p.g.get(), p.uD.get(), p.psi.get(), p.kappa.get(), p.exact.get()})
+    if (e) r.expressions.emplace_back(e->Option().substr(1), e->Text());
+  if (p.exact) r.expressions.emplace_back("exact_grad", p.exactGradText);
+}
+
+// The command line as the program got it, as a JSON list.
+static std::string CommandLine()
+{
+  int    argc = 0;
+  char **argv = nullptr;
+  PetscGetArgs(&argc, &argv);
+  std::string out = "[";
+  for (int i = 0; i < argc; ++i) out += (i ? ", " : "") + Str(argv[i]);
+  return out + "]";
 }
 
 PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string &file)
@@ -124,6 +144,9 @@ PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string
   std::ostringstream o;
   PetscFunctionBeginUser;
   o << "{\n";
+  o << "  \"command_line\": " << CommandLine() << ",\n  \"expressions\": {";
+  for (size_t i = 0; i < r.expressions.size(); ++i) o << (i ? ", " : "") << Str(r.expressions[i].first) << ": " << Str(r.expressions[i].second);
+  o << "},\n";
   o << "  \"scene\": " << Str(r.scene) << ",\n  \"element\": " << Str(r.element) << ",\n  \"dim\": " << r.dim << ",\n";
   o << "  \"mesh\": " << Str(r.mesh) << ",\n  \"refine\": " << r.refine << ",\n  \"coarse_cells\": " << r.coarseCells << ",\n  \"cells\": " << r.cells << ",\n";
   o << "  \"dofs\": " << r.dofs << ",\n  \"dirichlet_dofs\": " << r.dirichletDofs << ",\n  \"contact_dofs\": " << r.contactDofs << ",\n";
