@@ -23,6 +23,8 @@ PetscErrorCode OutputOptionsFromCommandLine(MPI_Comm comm, Element element, cons
   o.cr      = element == Element::CR;
   if (o.file.empty()) PetscFunctionReturn(0);
   if (o.file.size() < 4 || o.file.substr(o.file.size() - 3) != ".h5") SIGNORINI_INPUT_ERROR(comm, "option -output: '%s' must end in .h5", o.file.c_str());
+  // XDMF names a dataset as FILE:PATH, and readers (meshio) split at the colon
+  if (o.file.substr(o.file.find_last_of('/') + 1).find(':') != std::string::npos) SIGNORINI_INPUT_ERROR(comm, "option -output: '%s' has a ':' in its name, which XDMF readers take for the end of the file name", o.file.c_str());
   PetscCall(OutputClaim(comm, "-output", o));
   PetscFunctionReturn(0);
 }

@@ -107,6 +107,7 @@ refused("-study_output on a -study_profiles file", study + ["-study_profiles", "
 refused("-study_output on a contact profile", study + ["-study_profiles", "pr", "-study_output", "pr-p1-contact.csv"], ["-study_output", "-study_profiles", "pr-p1-contact.csv"])
 refused("-output on a -study_profiles file", study + ["-study_profiles", "pr", "-output", "pr-p1.h5"], ["-output", "-study_profiles", "pr-p1.h5"])
 refused("a -study_profiles XDMF file is a directory", study + ["-study_profiles", "pr", "-study_spaces", "cr"], ["-study_profiles", "pr-cr-dofs.xmf"], setup=mkdir("pr-cr-dofs.xmf"))
+refused("a ':' in the -output name, which XDMF readers split at", BASE + ["-output", "a:b.h5"], ["-output", "a:b.h5"])
 refused("-summary is a directory", BASE + ["-summary", "d"], ["-summary", "'d'"], setup=mkdir("d"))
 refused("-summary in a missing directory", BASE + ["-summary", "none/run.json"], ["-summary", "none/run.json"])
 # Device nodes and pipes: made in the test's own directory (a null device where the test may make one, as
