@@ -191,9 +191,12 @@ def start_and_wait(args, tmp, ranks):
     p = subprocess.Popen(command(args, ranks), cwd=tmp, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=ENV, text=True)
     deadline = time.time() + 120
     while p.poll() is None and time.time() < deadline:
-        temps = [n for n in os.listdir(tmp) if n.startswith("u.h5.tmp-")]
-        if temps and os.path.getsize(os.path.join(tmp, temps[0])) > 0:
-            return p, temps[0]
+        for name in (n for n in os.listdir(tmp) if n.startswith("u.h5.tmp-")):
+            try:  # the options-time check creates and removes a temporary of its own at once
+                if os.path.getsize(os.path.join(tmp, name)) > 0:
+                    return p, name
+            except FileNotFoundError:
+                pass
         time.sleep(0.01)
     return p, None
 
