@@ -4,10 +4,7 @@
 #include <malloc.h>
 #endif
 
-#include <sys/stat.h>
-
 #include <algorithm>
-#include <cerrno>
 #include <cstdarg>
 #include <cstdio>
 #include <cstdlib>
@@ -76,27 +73,6 @@ PetscErrorCode CheckAll(MPI_Comm comm, bool ok, const std::string &message)
   if (rank == failing) snprintf(buf, sizeof buf, "%s", message.c_str());
   PetscCallMPI(MPI_Bcast(buf, sizeof buf, MPI_CHAR, failing, comm));
   SETERRQ(comm, kInputError, "%s", buf);
-}
-
-PetscErrorCode CheckWritable(MPI_Comm comm, const std::string &option, const std::string &file)
-{
-  PetscMPIInt rank;
-  std::string problem;
-  PetscFunctionBeginUser;
-  PetscCallMPI(MPI_Comm_rank(comm, &rank));
-  if (rank == 0) {
-    struct stat st;
-    const std::string tmp = file + ".tmp";
-    FILE             *fp  = nullptr;
-    if (stat(file.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) problem = Format("option %s: '%s' is a directory, not a file", option.c_str(), file.c_str());
-    else if (!(fp = std::fopen(tmp.c_str(), "w"))) problem = Format("option %s: '%s' cannot be written (%s)", option.c_str(), file.c_str(), std::strerror(errno));
-    else {
-      std::fclose(fp);
-      std::remove(tmp.c_str());
-    }
-  }
-  PetscCall(CheckAll(comm, problem.empty(), problem));
-  PetscFunctionReturn(0);
 }
 
 std::string Trim(const std::string &text)

@@ -506,3 +506,46 @@ PetscErrorCode Solve(const Space &space, const Problem &problem, const System &s
 }
 
 } // namespace signorini
+
+namespace signorini {
+
+PetscErrorCode ContactFields(const Space &space, const Problem &problem, const System &sys, Vec u, Vec psi, Vec pressure, Vec active)
+{
+  Vec                measure;
+  const PetscScalar *ua, *ma;
+  PetscScalar       *la, *pa, *aa;
+  PetscReal          maxU;
+  PetscFunctionBeginUser;
+  PetscCall(VecDuplicate(u, &measure));
+  PetscCall(ContactLowerBound(space, problem, psi));
+  PetscCall(ContactMeasure(space, problem, measure));
+  PetscCall(MatMult(sys.A, u, pressure));
+  PetscCall(VecAXPY(pressure, -1.0, sys.b));
+  PetscCall(VecSet(active, 0));
+  PetscCall(VecNorm(u, NORM_INFINITY, &maxU));
+  const PetscReal tol = 1e-10 * std::max((PetscReal)1.0, maxU); // the rule of MeasureKKT's active count
+  std::vector<char> onContact(space.numOwned, 0);
+  for (PetscInt i : space.contactOwned) onContact[i] = 1;
+  PetscCall(VecGetArrayRead(u, &ua));
+  PetscCall(VecGetArrayRead(measure, &ma));
+  PetscCall(VecGetArray(psi, &la));
+  PetscCall(VecGetArray(pressure, &pa));
+  PetscCall(VecGetArray(active, &aa));
+  for (PetscInt i = 0; i < space.numOwned; ++i) {
+    if (!onContact[i]) {
+      la[i] = pa[i] = 0;
+      continue;
+    }
+    pa[i] /= ma[i];
+    aa[i] = PetscRealPart(ua[i] - la[i]) <= tol ? 1 : 0;
+  }
+  PetscCall(VecRestoreArrayRead(u, &ua));
+  PetscCall(VecRestoreArrayRead(measure, &ma));
+  PetscCall(VecRestoreArray(psi, &la));
+  PetscCall(VecRestoreArray(pressure, &pa));
+  PetscCall(VecRestoreArray(active, &aa));
+  PetscCall(VecDestroy(&measure));
+  PetscFunctionReturn(0);
+}
+
+} // namespace signorini

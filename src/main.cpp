@@ -51,8 +51,8 @@ static PetscErrorCode ReadSettings(MPI_Comm comm, Settings &s, bool help)
     [&] { return AssemblyOptionsFromCommandLine(comm, s.assembly); },
     [&] { return ErrorOptionsFromCommandLine(comm, s.errorDegree); },
     [&] { return ReportOptionsFromCommandLine(comm, s.summaryFile); },
-    [&] { return OutputOptionsFromCommandLine(comm, s.output); },
-    [&] { return StudyOptionsFromCommandLine(comm, s.study); },
+    [&] { return OutputOptionsFromCommandLine(comm, s.element, s.problem, s.output); },
+    [&] { return StudyOptionsFromCommandLine(comm, s.problem, s.study); },
     [&] { return SolveOptionsFromCommandLine(comm, s.solve); },
     [&] { return NestedOptionsFromCommandLine(comm, s.nested); },
   };
@@ -156,7 +156,8 @@ static PetscErrorCode Run(MPI_Comm comm)
   report.contactDofs   = space.numContactGlobal;
   report.ranks         = (PetscInt)meshInfo.cellsPerRank.size();
   report.hasExact      = s.problem.HasExact();
-  if (!s.output.file.empty()) PetscCall(OutputEnd(space, u, output));
+  ReportRecordExpressions(s.problem, report);
+  if (!s.output.file.empty()) PetscCall(OutputEnd(space, s.problem, sys, u, output));
   PetscCall(ReportGatherTimes(comm, start, report));
   PetscCall(ReportGatherMemory(comm, sys.A, report));
   PetscCall(ReportPrint(comm, report));

@@ -1,25 +1,46 @@
 #include "signorini/output.h"
+#include "signorini/contact.h"
 #include "signorini/options.h"
 #include "signorini/layout.h"
 #include "signorini/mesh.h"
-#include "signorini/report.h"
 #include "signorini/stages.h"
 
 #include <petscviewerhdf5.h>
 
-#include <cstdio>
+#include <algorithm>
 #include <sstream>
 
 namespace signorini {
 
-PetscErrorCode OutputOptionsFromCommandLine(MPI_Comm comm, OutputOptions &o)
+PetscErrorCode OutputOptionsFromCommandLine(MPI_Comm comm, Element element, const Problem &problem, OutputOptions &o)
 {
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Output", "signorini");
-  PetscCall(OptionString(PetscOptionsObject, "-output", "Write mesh and solution to FILE.h5 (HDF5) and FILE.xmf (XDMF for ParaView)", o.file));
+  PetscCall(OptionString(PetscOptionsObject, "-output", "Write mesh and solution to FILE.h5 (HDF5) and XDMF 3 files for ParaView and meshio: FILE.xmf (the mesh), FILE-contact.xmf (Gamma_C: u, psi, pressure, active set), FILE-dofs.xmf (CR DOFs)", o.file));
   PetscOptionsEnd();
-  if (!o.file.empty() && (o.file.size() < 4 || o.file.substr(o.file.size() - 3) != ".h5")) SIGNORINI_INPUT_ERROR(comm, "option -output: '%s' must end in .h5", o.file.c_str());
-  if (!o.file.empty()) PetscCall(CheckWritable(comm, "-output", o.file));
+  o.contact = problem.HasContact();
+  o.cr      = element == Element::CR;
+  if (o.file.empty()) PetscFunctionReturn(0);
+  if (o.file.size() < 4 || o.file.substr(o.file.size() - 3) != ".h5") SIGNORINI_INPUT_ERROR(comm, "option -output: '%s' must end in .h5", o.file.c_str());
+  // XDMF names a dataset as FILE:PATH, and readers (meshio) split at the colon
+  if (o.file.substr(o.file.find_last_of('/') + 1).find(':') != std::string::npos) SIGNORINI_INPUT_ERROR(comm, "option -output: '%s' has a ':' in its name, which XDMF readers take for the end of the file name", o.file.c_str());
+  PetscCall(OutputClaim(comm, "-output", o));
+  PetscFunctionReturn(0);
+}
+
+std::vector<std::string> OutputFiles(const OutputOptions &o)
+{
+  const std::string        stem = o.file.substr(0, o.file.size() - 3);
+  std::vector<std::string> files{o.file, stem + ".xmf"};
+  if (o.contact) files.push_back(stem + "-contact.xmf");
+  if (o.cr) files.push_back(stem + "-dofs.xmf");
+  return files;
+}
+
+PetscErrorCode OutputClaim(MPI_Comm comm, const std::string &option, const OutputOptions &o)
+{
+  PetscFunctionBeginUser;
+  for (const std::string &f : OutputFiles(o)) PetscCall(FileClaim(comm, option, f));
   PetscFunctionReturn(0);
 }
 
@@ -109,26 +130,50 @@ static std::string BaseName(const std::string &path)
   return slash == std::string::npos ? path : path.substr(slash + 1);
 }
 
-static std::string Xdmf(const std::string &h5, PetscInt dim, PetscInt nv, PetscInt nc, const char *vertexName, const char *cellName)
+static std::string XmlEscaped(const std::string &s)
 {
-  std::ostringstream x;
-  x << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"2.0\">\n <Domain>\n  <Grid Name=\"signorini\" GridType=\"Uniform\">\n";
-  x << "   <Topology TopologyType=\"" << (dim == 2 ? "Triangle" : "Tetrahedron") << "\" NumberOfElements=\"" << nc << "\">\n";
-  x << "    <DataItem Dimensions=\"" << nc << " " << dim + 1 << "\" NumberType=\"Int\" Format=\"HDF\">" << h5 << ":/viz/topology/cells</DataItem>\n   </Topology>\n";
-  x << "   <Geometry GeometryType=\"" << (dim == 2 ? "XY" : "XYZ") << "\">\n";
-  x << "    <DataItem Dimensions=\"" << nv << " " << dim << "\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">" << h5 << ":/geometry/vertices</DataItem>\n   </Geometry>\n";
-  x << "   <Attribute Name=\"u_h (vertex)\" AttributeType=\"Scalar\" Center=\"Node\">\n";
-  x << "    <DataItem Dimensions=\"" << nv << " 1\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">" << h5 << ":/vertex_fields/" << vertexName << "</DataItem>\n   </Attribute>\n";
-  x << "   <Attribute Name=\"u_h (cell mean)\" AttributeType=\"Scalar\" Center=\"Cell\">\n";
-  x << "    <DataItem Dimensions=\"" << nc << " 1\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">" << h5 << ":/cell_fields/" << cellName << "</DataItem>\n   </Attribute>\n";
-  x << "  </Grid>\n </Domain>\n</Xdmf>\n";
-  return x.str();
+  std::string e;
+  for (char c : s) e += c == '&' ? "&amp;" : c == '<' ? "&lt;" : c == '>' ? "&gt;" : std::string(1, c);
+  return e;
 }
+
+// One XDMF 3 file with one grid, its data in the HDF5 file `h5` (a name relative to the XDMF file).
+class XdmfGrid {
+public:
+  XdmfGrid(const std::string &h5, const char *name) : h5_(h5) { x_ << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n <Domain>\n  <Grid Name=\"" << name << "\" GridType=\"Uniform\">\n"; }
+  // `type` is an XDMF topology type; the dataset holds `elements` x `corners` vertex numbers.
+  void Topology(const char *type, PetscInt elements, PetscInt corners, const char *path)
+  {
+    x_ << "   <Topology TopologyType=\"" << type << "\" NumberOfElements=\"" << elements << "\" NodesPerElement=\"" << corners << "\">\n";
+    Item(Format("%d %d", (int)elements, (int)corners), "Int", sizeof(PetscInt), path);
+    x_ << "   </Topology>\n";
+  }
+  void Geometry(PetscInt points, PetscInt dim, const char *path)
+  {
+    x_ << "   <Geometry GeometryType=\"" << (dim == 2 ? "XY" : "XYZ") << "\">\n";
+    Item(Format("%d %d", (int)points, (int)dim), "Float", 8, path);
+    x_ << "   </Geometry>\n";
+  }
+  // A scalar per point (node) or per element (cell), a dataset of `n` values.
+  void Attribute(const char *name, bool node, PetscInt n, const std::string &path)
+  {
+    x_ << "   <Attribute Name=\"" << name << "\" AttributeType=\"Scalar\" Center=\"" << (node ? "Node" : "Cell") << "\">\n";
+    Item(Format("%d", (int)n), "Float", 8, path);
+    x_ << "   </Attribute>\n";
+  }
+  std::string Text() const { return x_.str() + "  </Grid>\n </Domain>\n</Xdmf>\n"; }
+
+private:
+  void Item(const std::string &dims, const char *type, size_t precision, const std::string &path)
+  {
+    x_ << "    <DataItem Dimensions=\"" << dims << "\" DataType=\"" << type << "\" Precision=\"" << precision << "\" Format=\"HDF\">" << XmlEscaped(h5_) << ":" << path << "</DataItem>\n";
+  }
+  std::string        h5_;
+  std::ostringstream x_;
+};
 
 Output::~Output()
 {
-  // A run that ended between OutputBegin and OutputEnd leaves no half-written file behind.
-  if (pending && rank == 0) std::remove((opts.file + ".tmp").c_str());
   DMDestroy(&cellLayout);
   DMDestroy(&vertLayout);
 }
@@ -159,13 +204,12 @@ PetscErrorCode OutputBegin(const Space &space, const OutputOptions &o, Output &o
   PetscFunctionBeginUser;
   PetscCheck(space.mesh, comm, PETSC_ERR_ORDER, "the output needs the space's mesh, which was released");
   PetscCall(StagePush(Stage::Output));
-  PetscCallMPI(MPI_Comm_rank(comm, &out.rank));
-  out.opts    = o;
-  out.dim     = space.dim;
-  out.pending = true; // from here on the destructor removes FILE.h5.tmp unless OutputEnd renamed it
+  out.opts = o;
+  out.dim  = space.dim;
+  PetscCall(out.files.Add(comm, o.file, out.h5)); // removed by the FileSet unless OutputEnd commits it
   PetscCall(PointFieldDM(space.mesh, true, &cellDM));
   PetscCall(PointFieldDM(space.mesh, false, &vertDM));
-  PetscCall(PetscViewerHDF5Open(comm, (o.file + ".tmp").c_str(), FILE_MODE_WRITE, &viewer));
+  PetscCall(PetscViewerHDF5Open(comm, out.h5.c_str(), FILE_MODE_WRITE, &viewer));
   PetscCall(PetscViewerPushFormat(viewer, PETSC_VIEWER_HDF5_XDMF));
   PetscCall(DMView(vertDM, viewer)); // /geometry/vertices and /viz/topology/cells
   PetscCall(PetscViewerPopFormat(viewer));
@@ -188,44 +232,200 @@ static PetscErrorCode ViewInGroup(PetscViewer viewer, const char *group, Vec v)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode OutputEnd(const Space &space, Vec u, Output &out)
+// Writes `values` (n per rank, in blocks of bs) into group/name: a dataset of (global n / bs) x bs reals,
+// or of global n reals when bs = 1. Returns the global number of blocks.
+static PetscErrorCode WriteReals(PetscViewer viewer, const char *group, const char *name, const std::vector<PetscReal> &values, PetscInt bs, PetscInt *blocks)
+{
+  MPI_Comm     comm = PetscObjectComm((PetscObject)viewer);
+  Vec          v;
+  PetscScalar *a;
+  PetscFunctionBeginUser;
+  PetscCall(VecCreate(comm, &v));
+  PetscCall(VecSetSizes(v, (PetscInt)values.size(), PETSC_DECIDE));
+  PetscCall(VecSetBlockSize(v, bs));
+  PetscCall(VecSetType(v, VECSTANDARD));
+  PetscCall(PetscObjectSetName((PetscObject)v, name));
+  PetscCall(VecGetArray(v, &a));
+  for (size_t i = 0; i < values.size(); ++i) a[i] = values[i];
+  PetscCall(VecRestoreArray(v, &a));
+  PetscCall(ViewInGroup(viewer, group, v));
+  PetscCall(VecGetSize(v, blocks));
+  *blocks /= bs;
+  PetscCall(VecDestroy(&v));
+  PetscFunctionReturn(0);
+}
+
+// Writes the topology of `n` local elements of `corners` points each whose points are numbered in order
+// (element k of this rank has the points corners * (first + k) + j, first the elements of the lower ranks)
+// into group/cells, as the integers an XDMF topology needs.
+static PetscErrorCode WriteOwnPoints(PetscViewer viewer, const char *group, PetscInt n, PetscInt corners)
+{
+  MPI_Comm              comm = PetscObjectComm((PetscObject)viewer);
+  PetscInt              first = 0, count = n * corners;
+  IS                    is;
+  std::vector<PetscInt> idx(count);
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Exscan(&count, &first, 1, MPIU_INT, MPI_SUM, comm));
+  PetscMPIInt rank;
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  if (rank == 0) first = 0; // MPI_Exscan leaves rank 0's result undefined
+  for (PetscInt i = 0; i < count; ++i) idx[i] = first + i;
+  PetscCall(ISCreateGeneral(comm, count, idx.data(), PETSC_COPY_VALUES, &is));
+  PetscCall(ISSetBlockSize(is, corners));
+  PetscCall(PetscObjectSetName((PetscObject)is, "cells"));
+  PetscCall(PetscViewerHDF5PushGroup(viewer, group));
+  PetscCall(ISView(is, viewer));
+  PetscCall(PetscViewerHDF5PopGroup(viewer));
+  PetscCall(ISDestroy(&is));
+  PetscFunctionReturn(0);
+}
+
+// The local values of global vector g at the local DOFs.
+static PetscErrorCode LocalValues(const Space &space, Vec g, std::vector<PetscReal> &values)
+{
+  Vec                loc;
+  const PetscScalar *a;
+  PetscFunctionBeginUser;
+  PetscCall(DMGetLocalVector(space.dm, &loc));
+  PetscCall(DMGlobalToLocal(space.dm, g, INSERT_VALUES, loc));
+  PetscCall(VecGetArrayRead(loc, &a));
+  values.resize(space.numLocal);
+  for (PetscInt i = 0; i < space.numLocal; ++i) values[i] = PetscRealPart(a[i]);
+  PetscCall(VecRestoreArrayRead(loc, &a));
+  PetscCall(DMRestoreLocalVector(space.dm, &loc));
+  PetscFunctionReturn(0);
+}
+
+static const char *const kContactFields[] = {"u", "psi", "pressure", "active"};
+
+// Gamma_C as a grid of its own: every contact face (on the rank of its cell) with its own copies of its
+// vertices, into /contact: vertices, cells, and u, psi, pressure, active at the contact DOFs (per face
+// vertex for P1, per face for CR). Returns the global numbers of faces and of points.
+static PetscErrorCode WriteContactGrid(const Space &space, const Problem &problem, const System &sys, Vec u, PetscViewer viewer, PetscInt *faces, PetscInt *points)
+{
+  Vec                    g[4];
+  std::vector<PetscReal> local[4], X, values[4];
+  PetscInt               n = 0, dummy;
+  PetscFunctionBeginUser;
+  g[0] = u;
+  for (int k = 1; k < 4; ++k) PetscCall(VecDuplicate(u, &g[k]));
+  PetscCall(ContactFields(space, problem, sys, u, g[1], g[2], g[3]));
+  for (int k = 0; k < 4; ++k) PetscCall(LocalValues(space, g[k], local[k]));
+  for (int k = 1; k < 4; ++k) PetscCall(VecDestroy(&g[k]));
+  for (const BoundaryFace &bf : space.boundary) {
+    if (std::find(problem.contact.begin(), problem.contact.end(), bf.part) == problem.contact.end()) continue;
+    ++n;
+    for (PetscInt i = 0; i < space.Nb(); ++i) {
+      if (i == bf.opposite) continue;
+      const PetscInt v = space.cellVert[bf.cell * space.Nb() + i];
+      for (PetscInt d = 0; d < space.dim; ++d) X.push_back(space.vertX[v * space.dim + d]);
+      if (space.element == Element::P1)
+        for (int k = 0; k < 4; ++k) values[k].push_back(local[k][space.Dofs(bf.cell)[i]]);
+    }
+    if (space.element == Element::CR)
+      for (int k = 0; k < 4; ++k) values[k].push_back(local[k][bf.dof]);
+  }
+  PetscCall(WriteReals(viewer, "/contact", "vertices", X, space.dim, points));
+  PetscCall(WriteOwnPoints(viewer, "/contact", n, space.dim));
+  for (int k = 0; k < 4; ++k) PetscCall(WriteReals(viewer, "/contact", kContactFields[k], values[k], 1, &dummy));
+  *faces = *points / space.dim;
+  PetscFunctionReturn(0);
+}
+
+// The CR DOFs as points (face midpoints), into /dofs: points, cells; their values are /fields/u.
+static PetscErrorCode WriteDofGrid(const Space &space, Vec u, PetscViewer viewer, PetscInt *n)
+{
+  Vec                    xg;
+  std::vector<PetscReal> X(space.numOwned * space.dim), component;
+  PetscFunctionBeginUser;
+  const std::vector<PetscReal> points = DofPoints(space);
+  PetscCall(VecDuplicate(u, &xg));
+  for (PetscInt d = 0; d < space.dim; ++d) { // owned entries of a global vector: the DOFs in their global order
+    Vec          loc;
+    PetscScalar *a;
+    PetscCall(DMGetLocalVector(space.dm, &loc));
+    PetscCall(VecGetArray(loc, &a));
+    for (PetscInt i = 0; i < space.numLocal; ++i) a[i] = points[i * space.dim + d];
+    PetscCall(VecRestoreArray(loc, &a));
+    PetscCall(DMLocalToGlobal(space.dm, loc, INSERT_VALUES, xg));
+    PetscCall(DMRestoreLocalVector(space.dm, &loc));
+    PetscCall(VecGetArray(xg, &a));
+    for (PetscInt i = 0; i < space.numOwned; ++i) X[i * space.dim + d] = PetscRealPart(a[i]);
+    PetscCall(VecRestoreArray(xg, &a));
+  }
+  PetscCall(VecDestroy(&xg));
+  PetscCall(WriteReals(viewer, "/dofs", "points", X, space.dim, n));
+  PetscCall(WriteOwnPoints(viewer, "/dofs", space.numOwned, 1));
+  PetscFunctionReturn(0);
+}
+
+// The XDMF files of OutputFiles, after FILE.h5, as text.
+static std::vector<std::string> XdmfFiles(const Output &out, PetscInt contactFaces, PetscInt contactPoints, PetscInt dofs, bool p1)
+{
+  const std::string        h5 = BaseName(out.opts.file);
+  std::vector<std::string> text;
+  XdmfGrid                 mesh(h5, "mesh");
+  mesh.Topology(out.dim == 2 ? "Triangle" : "Tetrahedron", out.nc, out.dim + 1, "/viz/topology/cells");
+  mesh.Geometry(out.nv, out.dim, "/geometry/vertices");
+  mesh.Attribute("u_h (vertex)", true, out.nv, "/vertex_fields/u_vertex_value");
+  mesh.Attribute("u_h (cell mean)", false, out.nc, "/cell_fields/u_cell_value");
+  text.push_back(mesh.Text());
+  if (out.opts.contact) {
+    XdmfGrid contact(h5, "Gamma_C");
+    contact.Topology(out.dim == 2 ? "Polyline" : "Triangle", contactFaces, out.dim, "/contact/cells");
+    contact.Geometry(contactPoints, out.dim, "/contact/vertices");
+    const char *names[] = {"u_h", "psi", "pressure", "active"};
+    for (int k = 0; k < 4; ++k) contact.Attribute(names[k], p1, p1 ? contactPoints : contactFaces, std::string("/contact/") + kContactFields[k]);
+    text.push_back(contact.Text());
+  }
+  if (out.opts.cr) {
+    XdmfGrid grid(h5, "CR DOFs");
+    grid.Topology("Polyvertex", dofs, 1, "/dofs/cells");
+    grid.Geometry(dofs, out.dim, "/dofs/points");
+    grid.Attribute("u_h", true, dofs, "/fields/u");
+    text.push_back(grid.Text());
+  }
+  return text;
+}
+
+PetscErrorCode OutputEnd(const Space &space, const Problem &problem, const System &sys, Vec u, Output &out)
 {
   MPI_Comm    comm = PetscObjectComm((PetscObject)space.dm);
   Vec         cellMean, vertexAvg;
   PetscViewer viewer;
-  std::string problem;
+  PetscInt    contactFaces = 0, contactPoints = 0, dofs = 0;
   PetscFunctionBeginUser;
-  PetscCheck(out.pending, comm, PETSC_ERR_ORDER, "OutputEnd without OutputBegin");
+  PetscCheck(!out.h5.empty(), comm, PETSC_ERR_ORDER, "OutputEnd without OutputBegin");
   PetscCall(StagePush(Stage::Output));
   PetscCall(DMCreateGlobalVector(out.cellLayout, &cellMean));
   PetscCall(DMCreateGlobalVector(out.vertLayout, &vertexAvg));
   PetscCall(PetscObjectSetName((PetscObject)cellMean, "u_cell_value")); // the names the XDMF file refers to
   PetscCall(PetscObjectSetName((PetscObject)vertexAvg, "u_vertex_value"));
   PetscCall(DerivedFields(space, u, out.cellLayout, out.vertLayout, cellMean, vertexAvg));
-  const std::string tmp = out.opts.file + ".tmp";
-  PetscCall(PetscViewerHDF5Open(comm, tmp.c_str(), FILE_MODE_APPEND, &viewer));
+  PetscCall(PetscViewerHDF5Open(comm, out.h5.c_str(), FILE_MODE_APPEND, &viewer));
   PetscCall(ViewInGroup(viewer, "/vertex_fields", vertexAvg));
   PetscCall(ViewInGroup(viewer, "/cell_fields", cellMean));
   PetscCall(ViewInGroup(viewer, "/fields", u)); // the raw DOF vector (faces for CR, vertices for P1)
+  if (out.opts.contact) PetscCall(WriteContactGrid(space, problem, sys, u, viewer, &contactFaces, &contactPoints));
+  if (out.opts.cr) PetscCall(WriteDofGrid(space, u, viewer, &dofs));
   PetscCall(PetscViewerDestroy(&viewer));
   PetscCall(VecDestroy(&cellMean));
   PetscCall(VecDestroy(&vertexAvg));
 
-  if (out.rank == 0 && std::rename(tmp.c_str(), out.opts.file.c_str()) != 0) problem = Format("option -output: renaming '%s' failed", tmp.c_str());
-  PetscCall(CheckAll(comm, problem.empty(), problem));
-  out.pending         = false;
-  const std::string h5 = out.opts.file, xmf = h5.substr(0, h5.size() - 3) + ".xmf";
-  PetscCall(WriteFileAtomically(comm, xmf, Xdmf(BaseName(h5), out.dim, out.nv, out.nc, "u_vertex_value", "u_cell_value")));
+  const std::vector<std::string> names = OutputFiles(out.opts), text = XdmfFiles(out, contactFaces, contactPoints, dofs, space.element == Element::P1);
+  for (size_t i = 0; i < text.size(); ++i) PetscCall(out.files.AddText(comm, names[i + 1], text[i]));
+  PetscCall(out.files.Commit(comm)); // FILE.h5 and its XDMF files together
+  out.h5.clear();
   PetscCall(StagePop(Stage::Output));
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode WriteSolution(const Space &space, Vec u, const OutputOptions &o)
+PetscErrorCode WriteSolution(const Space &space, const Problem &problem, const System &sys, Vec u, const OutputOptions &o)
 {
   Output out;
   PetscFunctionBeginUser;
   PetscCall(OutputBegin(space, o, out));
-  PetscCall(OutputEnd(space, u, out));
+  PetscCall(OutputEnd(space, problem, sys, u, out));
   PetscFunctionReturn(0);
 }
 

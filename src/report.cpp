@@ -16,7 +16,7 @@ PetscErrorCode ReportOptionsFromCommandLine(MPI_Comm comm, std::string &summaryF
   PetscOptionsBegin(comm, "", "Summary", "signorini");
   PetscCall(OptionString(PetscOptionsObject, "-summary", "Write the run's figures as JSON to this file", summaryFile));
   PetscOptionsEnd();
-  if (!summaryFile.empty()) PetscCall(CheckWritable(comm, "-summary", summaryFile));
+  if (!summaryFile.empty()) PetscCall(FileClaim(comm, "-summary", summaryFile));
   PetscFunctionReturn(0);
 }
 
@@ -113,32 +113,29 @@ static std::string Str(const std::string &s)
   std::string out = "\"";
   for (char c : s) {
     if (c == '"' || c == '\\') out += '\\';
-    out += c;
+    if ((unsigned char)c < 0x20) out += Format("\\u%04x", (unsigned)c); // a newline in an argument
+    else out += c;
   }
   return out + "\"";
 }
 
-PetscErrorCode WriteFileAtomically(MPI_Comm comm, const std::string &file, const std::string &text)
+void ReportRecordExpressions(const Problem &p, Report &r)
 {
-  PetscMPIInt rank;
-  std::string problem;
-  PetscFunctionBeginUser;
-  PetscCallMPI(MPI_Comm_rank(comm, &rank));
-  if (rank == 0) {
-    const std::string tmp = file + ".tmp";
-    FILE             *fp  = std::fopen(tmp.c_str(), "w");
-    if (!fp) problem = Format("output file '%s': cannot be written", file.c_str());
-    else {
-      bool ok = std::fwrite(text.data(), 1, text.size(), fp) == text.size();
-      ok      = (std::fclose(fp) == 0) && ok;
-      if (!ok || std::rename(tmp.c_str(), file.c_str()) != 0) {
-        std::remove(tmp.c_str());
-        problem = Format("output file '%s': writing failed", file.c_str());
-      }
-    }
-  }
-  PetscCall(CheckAll(comm, problem.empty(), problem));
-  PetscFunctionReturn(0);
+  r.expressions.clear();
+  for (const Expression *e : {p.f.get(), p.g.get(), p.uD.get(), p.psi.get(), p.kappa.get(), p.exact.get()})
+    if (e) r.expressions.emplace_back(e->Option().substr(1), e->Text());
+  if (p.exact) r.expressions.emplace_back("exact_grad", p.exactGradText);
+}
+
+// The command line as the program got it, as a JSON list.
+static std::string CommandLine()
+{
+  int    argc = 0;
+  char **argv = nullptr;
+  PetscGetArgs(&argc, &argv);
+  std::string out = "[";
+  for (int i = 0; i < argc; ++i) out += (i ? ", " : "") + Str(argv[i]);
+  return out + "]";
 }
 
 PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string &file)
@@ -146,6 +143,9 @@ PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string
   std::ostringstream o;
   PetscFunctionBeginUser;
   o << "{\n";
+  o << "  \"command_line\": " << CommandLine() << ",\n  \"expressions\": {";
+  for (size_t i = 0; i < r.expressions.size(); ++i) o << (i ? ", " : "") << Str(r.expressions[i].first) << ": " << Str(r.expressions[i].second);
+  o << "},\n";
   o << "  \"scene\": " << Str(r.scene) << ",\n  \"element\": " << Str(r.element) << ",\n  \"dim\": " << r.dim << ",\n";
   o << "  \"mesh\": " << Str(r.mesh) << ",\n  \"refine\": " << r.refine << ",\n  \"coarse_cells\": " << r.coarseCells << ",\n  \"cells\": " << r.cells << ",\n";
   o << "  \"dofs\": " << r.dofs << ",\n  \"dirichlet_dofs\": " << r.dirichletDofs << ",\n  \"contact_dofs\": " << r.contactDofs << ",\n";

@@ -9,7 +9,10 @@
 
 namespace signorini {
 
-PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, StudyOptions &o)
+static std::string   ProfileBase(const std::string &prefix, Element e) { return prefix + "-" + ElementName(e); }
+static OutputOptions ProfileOutput(const std::string &prefix, Element e, const Problem &problem) { return OutputOptions{ProfileBase(prefix, e) + ".h5", problem.HasContact(), e == Element::CR}; }
+
+PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, const Problem &problem, StudyOptions &o)
 {
   PetscInt    ref      = (PetscInt)o.referenceElement;
   std::string elements = "p1,cr";
@@ -30,8 +33,12 @@ PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, StudyOptions &o)
     else if (item == "cr") o.elements.push_back(Element::CR);
     else SIGNORINI_INPUT_ERROR(comm, "option -study_spaces: unknown element '%s' (p1 or cr)", item.c_str());
   }
-  if (!o.file.empty()) PetscCall(CheckWritable(comm, "-study_output", o.file));
-  if (!o.profiles.empty()) PetscCall(CheckWritable(comm, "-study_profiles", o.profiles + "-" + ElementName(o.elements.front()) + ".h5"));
+  if (!o.file.empty()) PetscCall(FileClaim(comm, "-study_output", o.file));
+  if (!o.profiles.empty())
+    for (Element e : o.elements) { // the files SolveOn writes on the finest level
+      PetscCall(OutputClaim(comm, "-study_profiles", ProfileOutput(o.profiles, e, problem)));
+      if (problem.HasContact()) PetscCall(FileClaim(comm, "-study_profiles", ProfileBase(o.profiles, e) + "-contact.csv"));
+    }
   PetscFunctionReturn(0);
 }
 
@@ -50,9 +57,8 @@ static PetscErrorCode SolveOn(DM mesh, Element element, const Problem &problem, 
   PetscCall(PetscTime(&t1));
   solveSeconds = t1 - t0;
   if (!profile.empty()) {
-    const std::string base = profile + "-" + ElementName(element);
-    PetscCall(WriteSolution(space, *u, OutputOptions{base + ".h5"}));
-    if (problem.HasContact()) PetscCall(WriteContactProfile(space, problem, sys, *u, base + "-contact.csv"));
+    PetscCall(WriteSolution(space, problem, sys, *u, ProfileOutput(profile, element, problem)));
+    if (problem.HasContact()) PetscCall(WriteContactProfile(space, problem, sys, *u, ProfileBase(profile, element) + "-contact.csv"));
   }
   PetscCall(SystemDestroy(sys));
   PetscFunctionReturn(0);

@@ -22,10 +22,6 @@ PetscErrorCode CheckAll(MPI_Comm comm, bool ok, const std::string &message);
 // Raise kInputError on all ranks (the condition must already be known to every rank).
 #define SIGNORINI_INPUT_ERROR(comm, ...) SETERRQ((comm), ::signorini::kInputError, __VA_ARGS__)
 
-// Collective: checks, before any work is done, that `file` (named by `option`) can be created, by creating
-// and removing FILE.tmp on rank 0; an expensive solve should not end in "cannot write the output".
-PetscErrorCode CheckWritable(MPI_Comm comm, const std::string &option, const std::string &file);
-
 // `text` without the blanks (spaces, tabs) around it.
 std::string Trim(const std::string &text);
 // The integer `text` (named by `option` in the message) in [min, max]: returns "" and sets `value`, or

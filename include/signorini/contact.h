@@ -67,5 +67,9 @@ PetscErrorCode ProjectOntoConstraints(const System &sys, const std::vector<Petsc
 // start from u_D would reach (its SNES rtol times its initial residual), so that a good initial guess
 // saves work without changing the discrete solution beyond solver tolerance. Pushes the Solve stage.
 PetscErrorCode Solve(const Space &space, const Problem &problem, const System &sys, Vec u, SolveResult &result, const SolveOptions &opts = SolveOptions());
+// For the output, global vectors of the space that are 0 off Gamma_C: psi, the contact pressure
+// (A u - b) / measure (as in the KKT check), and the active set (1 where u - psi is at most 1e-10 max(1, max|u|),
+// the rule of SolveResult::active).
+PetscErrorCode ContactFields(const Space &space, const Problem &problem, const System &sys, Vec u, Vec psi, Vec pressure, Vec active);
 
 } // namespace signorini

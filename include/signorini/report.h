@@ -5,6 +5,7 @@
 
 #include "signorini/contact.h"
 #include "signorini/error.h"
+#include "signorini/files.h"
 #include "signorini/mesh.h"
 #include "signorini/stages.h"
 
@@ -24,7 +25,13 @@ struct Report {
   // ranks, known only when PETSc's tracing allocator is on (-malloc_dump, -malloc_debug, -malloc_test),
   // -1 otherwise (hypre and std::vector memory is never in it; the RSS includes everything).
   double peakRSSSum = 0, peakRSSMax = 0, matrixBytes = 0, petscMallocPeak = -1;
+  // The expressions of the scene as given (option without '-', text), for the JSON summary, which also
+  // records the command line.
+  std::vector<std::pair<std::string, std::string>> expressions;
 };
+
+// Records the scene's expressions (f, g, u_D, psi, kappa and, if given, the exact solution and gradient).
+void ReportRecordExpressions(const Problem &p, Report &r);
 
 PetscErrorCode ReportOptionsFromCommandLine(MPI_Comm comm, std::string &summaryFile);
 // Fills the stage times (max over ranks) and the total since `start`.
@@ -35,7 +42,5 @@ PetscErrorCode PeakRSS(MPI_Comm comm, double *sum, double *max);
 PetscErrorCode ReportGatherMemory(MPI_Comm comm, Mat A, Report &r);
 PetscErrorCode ReportPrint(MPI_Comm comm, const Report &r);
 PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string &file);
-// Writes text on rank 0 to `file` through a temporary name and a rename; collective, fails on all ranks.
-PetscErrorCode WriteFileAtomically(MPI_Comm comm, const std::string &file, const std::string &text);
 
 } // namespace signorini

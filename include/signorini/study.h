@@ -22,7 +22,8 @@ struct StudyOptions {
   std::string          profiles; // prefix of the finest level's solution (HDF5) and contact profile (CSV)
 };
 
-PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, StudyOptions &o);
+// The problem says which profile files are written (contact profiles only with a contact part).
+PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, const Problem &problem, StudyOptions &o);
 
 struct StudyRow {
   std::string element;
