@@ -17,6 +17,7 @@ static const char help[] =
 #include "signorini/report.h"
 #include "signorini/space.h"
 #include "signorini/stages.h"
+#include "signorini/startup.h"
 #include "signorini/study.h"
 
 #include <cstdio>
@@ -174,6 +175,7 @@ static PetscErrorCode WarnUnusedOptions(MPI_Comm comm)
 
 int main(int argc, char **argv)
 {
+  if (StartMPI(&argc, &argv, "signorini")) return 1; // a missing options file, in one line
   PetscErrorCode ierr = PetscInitialize(&argc, &argv, NULL, help);
   if (ierr) return ierr;
   // Input errors get one line; -error_traceback restores PETSc's full traceback for debugging.
@@ -185,5 +187,6 @@ int main(int argc, char **argv)
   const int status = ExitStatus(PETSC_COMM_WORLD, ierr, "signorini");
   if (!traceback) PetscPopErrorHandler(); // -malloc_dump would list the pushed handler as a leak
   PetscFinalize();
+  MPI_Finalize(); // StartMPI began MPI, so PetscFinalize leaves it running
   return status;
 }

@@ -358,6 +358,32 @@ static PetscErrorCode PartitionWithMetis(DM dm, PetscInt &edgeCut)
   PetscFunctionReturn(0);
 }
 
+// -mesh_partitioner names metis (PartitionWithMetis) or a registered PetscPartitioner type, less the shell
+// (which needs a partition made in code) and those whose external package this PETSc lacks: checked before
+// the mesh is built, since PETSc finds a wrong name only when it distributes the mesh.
+static PetscErrorCode CheckPartitioner(MPI_Comm comm, const std::string &partitioner)
+{
+  const char **types;
+  int          n;
+  std::string  valid = "metis";
+  bool         found = partitioner == "metis";
+  PetscFunctionBeginUser;
+  PetscCall(PetscPartitionerInitializePackage());
+  PetscCall(PetscFunctionListGet(PetscPartitionerList, &types, &n));
+  for (int i = 0; i < n && types[i]; ++i) {
+    const std::string type = types[i];
+    PetscBool         have = PETSC_TRUE;
+    if (type == PETSCPARTITIONERSHELL) continue;
+    if (type == PETSCPARTITIONERPARMETIS || type == PETSCPARTITIONERPTSCOTCH || type == PETSCPARTITIONERCHACO) PetscCall(PetscHasExternalPackage(types[i], &have));
+    if (!have) continue;
+    valid += ", " + type;
+    found = found || partitioner == type;
+  }
+  PetscCall(PetscFree(types));
+  if (!found) SIGNORINI_INPUT_ERROR(comm, "option -mesh_partitioner: '%s' is not an available partitioner (valid: %s)", partitioner.c_str(), valid.c_str());
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode MeshSize(DM dm, PetscReal *hmax)
 {
   PetscInt           eStart, eEnd, cdim;
@@ -457,6 +483,7 @@ PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &o, DM *dm, MeshInfo 
   PetscInt    cStart, cEnd;
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_size(comm, &size));
+  PetscCall(CheckPartitioner(comm, o.partitioner));
 
   PetscCall(StagePush(Stage::Mesh));
   if (o.file.empty()) PetscCall(CreateBox(comm, o, dm, info.description));

@@ -1,7 +1,8 @@
 """Bad input: every case exits with status 1 (not 2, not a hang), prints exactly one line
 "signorini: error: ..." on stderr that names the offending option or file, and leaves neither a summary
 nor any output file (.h5, .xmf, *.tmp) behind. Mesh-file, boundary-label and kappa cases, whose failure
-can be found on one rank only, also run on 2 ranks."""
+can be found on one rank only, also run on 2 ranks, and so do the options files and the solver options, which
+PETSc reads on rank 0 or on all ranks at once."""
 import os
 import subprocess
 import tempfile
@@ -125,6 +126,7 @@ with tempfile.TemporaryDirectory() as inputs:
     unit_square(mixed, extra_nodes={10: (0.5, 0.5, 1.0)}, extra_elements=[(4, 20, (1, 2, 4, 10))])  # one tetrahedron
     second_order(order2)
     msh1(version1)
+    missing_options = os.path.join(inputs, "no-such-options-file")
     isdir = os.path.join(inputs, "a-directory.h5")
     os.mkdir(isdir)
     notdir = os.path.join(square, "summary.json")  # a path below a regular file
@@ -182,6 +184,13 @@ with tempfile.TemporaryDirectory() as inputs:
         ("triangles and a tetrahedron", ["-mesh_file", mixed] + square_scene, "is not a face of any tetrahedron", True),
         ("second-order elements", ["-mesh_file", order2] + square_scene, "of order 2", True),
         ("msh version 1", ["-mesh_file", version1] + square_scene, "version 1", True),
+        # errors while PETSc or its objects read the options
+        ("missing options file", ["-options_file", missing_options], "option -options_file: cannot open '%s'" % missing_options, True),
+        ("unknown partitioner", ["-mesh_partitioner", "bogus"], "option -mesh_partitioner: 'bogus' is not an available partitioner", True),
+        ("SNES type without bounds", ["-snes_type", "newtonls"], "vinewtonrsls", True),
+        ("unknown KSP type", ["-ksp_type", "bogus"], "KSP type bogus", True),
+        ("unknown PC type", ["-pc_type", "bogus"], "PC type bogus", True),
+        ("unknown PC type for the inactive-set blocks", ["-vi_pc_type", "bogus"], "PC type bogus", True),
     ]
 
     # Errors that need no fine mesh must stop the run before the refinement (which costs minutes at scale):
@@ -193,7 +202,7 @@ with tempfile.TemporaryDirectory() as inputs:
                          "singular, and a missing mesh file", "bad expression, and a missing mesh file",
                          "quadrilateral cells", "no cells of dimension 2 or 3", "curved surface mesh",
                          "duplicated node", "duplicated node, msh 4.1", "dangling node reference", "a triangle (a, a, b)", "triangles and a tetrahedron",
-                         "second-order elements", "msh version 1"}
+                         "second-order elements", "msh version 1", "missing options file", "unknown partitioner"}
     c.check(before_refinement <= {case[0] for case in cases}, "every case named in before_refinement exists")
     for name, extra, names, parallel in cases:
         for ranks in [1, 2] if parallel else [1]:
