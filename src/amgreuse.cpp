@@ -1,4 +1,5 @@
 #include "signorini/amgreuse.h"
+#include "signorini/options.h"
 #include "signorini/common.h"
 
 #include <string>
@@ -8,21 +9,15 @@ namespace signorini {
 
 PetscErrorCode AmgReuseOptionsFromCommandLine(MPI_Comm comm, AmgReuseOptions &o)
 {
-  PetscBool enabled = o.enabled ? PETSC_TRUE : PETSC_FALSE;
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Linear solves of the Newton steps of the contact solve", "signorini");
-  PetscCall(PetscOptionsBool("-amg_reuse", "Keep the BoomerAMG set-up across Newton steps while the inactive set changes little (off: a new set-up every step)", "", enabled, &enabled, NULL));
-  PetscCall(PetscOptionsReal("-vi_inexact_rtol", "Relative tolerance of the linear solves of Newton steps whose active set still moves; from a nested-iteration guess, of the first step only (0: every step to the KSP tolerance)", "", o.inexactRtol, &o.inexactRtol, NULL));
-  char type[64];
-  PetscBool set;
-  PetscCall(PetscStrncpy(type, o.innerType.c_str(), sizeof(type)));
-  PetscCall(PetscOptionsString("-vi_pc_type", "Preconditioner built for the inactive-set blocks of the contact solve (hypre, gamg, ...; -pc_type replaces the whole re-using shell)", "", type, type, sizeof(type), &set));
-  o.innerType = type;
-  PetscCall(PetscOptionsInt("-amg_reuse_max_changed", "Set BoomerAMG up anew once more than this many DOFs left or joined the inactive set since its last set-up", "", o.maxChanged, &o.maxChanged, NULL));
+  PetscCall(OptionBool(PetscOptionsObject, "-amg_reuse", "Keep the BoomerAMG set-up across Newton steps while the inactive set changes little (off: a new set-up every step)", o.enabled));
+  PetscCall(OptionReal(PetscOptionsObject, "-vi_inexact_rtol", "Relative tolerance of the linear solves of Newton steps whose active set still moves; from a nested-iteration guess, of the first step only (0: every step to the KSP tolerance)", o.inexactRtol, 0, 1));
+  PetscCall(OptionString(PetscOptionsObject, "-vi_pc_type", "Preconditioner built for the inactive-set blocks of the contact solve (hypre, gamg, ...; -pc_type replaces the whole re-using shell)", o.innerType));
+  PetscCall(OptionInt(PetscOptionsObject, "-amg_reuse_max_changed", "Set BoomerAMG up anew once more than this many DOFs left or joined the inactive set since its last set-up", o.maxChanged, 0, PETSC_MAX_INT));
   PetscOptionsEnd();
-  o.enabled = enabled;
-  if (!(o.inexactRtol >= 0 && o.inexactRtol < 1)) SIGNORINI_INPUT_ERROR(comm, "option -vi_inexact_rtol: must be in [0, 1), got %g", (double)o.inexactRtol);
-  if (o.maxChanged < 0) SIGNORINI_INPUT_ERROR(comm, "option -amg_reuse_max_changed: must be >= 0, got %" PetscInt_FMT, o.maxChanged);
+  // A tolerance of 1 would accept any step without a linear solve.
+  if (!(o.inexactRtol < 1)) SIGNORINI_INPUT_ERROR(comm, "option -vi_inexact_rtol: must be in [0, 1), got %g", (double)o.inexactRtol);
   PetscFunctionReturn(0);
 }
 

@@ -1,4 +1,5 @@
 #include "signorini/assembly.h"
+#include "signorini/options.h"
 #include "signorini/pattern.h"
 #include "signorini/stages.h"
 
@@ -8,15 +9,13 @@ namespace signorini {
 
 PetscErrorCode AssemblyOptionsFromCommandLine(MPI_Comm comm, AssemblyOptions &o)
 {
-  const char *rules[] = {"accurate", "centroid"};
-  PetscInt    rule    = o.centroid ? 1 : 0;
+  PetscInt rule = o.centroid ? 1 : 0;
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Assembly", "signorini");
-  PetscCall(PetscOptionsEList("-load_quadrature", "Load integral rule: accurate (degree -load_quadrature_degree) or centroid (one point)", "", rules, 2, rules[rule], &rule, NULL));
-  PetscCall(PetscOptionsInt("-load_quadrature_degree", "Polynomial degree integrated exactly by the accurate load rule", "", o.loadDegree, &o.loadDegree, NULL));
+  PetscCall(OptionEList(PetscOptionsObject, "-load_quadrature", "Load integral rule: accurate (degree -load_quadrature_degree) or centroid (one point)", {"accurate", "centroid"}, rule));
+  PetscCall(OptionInt(PetscOptionsObject, "-load_quadrature_degree", "Polynomial degree integrated exactly by the accurate load rule", o.loadDegree, 1, PETSC_MAX_INT));
   PetscOptionsEnd();
   o.centroid = rule == 1;
-  if (o.loadDegree < 1) SIGNORINI_INPUT_ERROR(comm, "option -load_quadrature_degree: must be >= 1, got %" PetscInt_FMT, o.loadDegree);
   PetscFunctionReturn(0);
 }
 
@@ -69,6 +68,7 @@ static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, 
     PetscCall(MatSetValuesLocal(sys.A, nb, space.Dofs(c), nb, space.Dofs(c), Ke, ADD_VALUES));
     if (zeroLoad) continue;
     std::fill(be, be + nb, 0.0);
+    problem.f->SetCellSet(space.CellSet(c));
     for (PetscInt q = 0; q < sys.cellRule.Size(); ++q) {
       const PetscReal *lambda = sys.cellRule.Point(q);
       SimplexPoint(space.dim, X, lambda, x);
@@ -87,6 +87,7 @@ static void AssembleNeumann(const Space &space, const Problem &problem, const Sy
   for (const BoundaryFace &bf : space.boundary) {
     if (std::find(problem.neumann.begin(), problem.neumann.end(), bf.part) == problem.neumann.end()) continue;
     const PetscReal area = space.FaceMeasure(bf);
+    problem.g->SetCellSet(space.CellSet(bf.cell)); // a boundary face has one cell
     for (PetscInt q = 0; q < sys.faceRule.Size(); ++q) {
       space.FaceToCell(bf, sys.faceRule.Point(q), lambda);
       space.Point(bf.cell, lambda, x);

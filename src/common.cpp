@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <functional>
 
 namespace signorini {
 
@@ -33,12 +34,17 @@ PetscMPIInt OwnerOf(const std::vector<PetscInt> &ranges, PetscInt g)
 
 std::string Format(const char *fmt, ...)
 {
-  va_list ap;
+  // Any length: messages quote the user's expressions, which have no length limit.
+  va_list ap, again;
   va_start(ap, fmt);
-  char buf[1024];
-  vsnprintf(buf, sizeof buf, fmt, ap);
+  va_copy(again, ap);
+  const int n = std::vsnprintf(nullptr, 0, fmt, ap);
   va_end(ap);
-  return buf;
+  std::string text(n > 0 ? (size_t)n + 1 : 1, '\0');
+  if (n > 0) std::vsnprintf(&text[0], text.size(), fmt, again);
+  va_end(again);
+  text.resize(n > 0 ? (size_t)n : 0);
+  return text;
 }
 
 PetscErrorCode SecondsSince(MPI_Comm comm, PetscLogDouble t0, double *seconds)
@@ -93,21 +99,55 @@ PetscErrorCode CheckWritable(MPI_Comm comm, const std::string &option, const std
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ParseIntList(MPI_Comm comm, const std::string &option, const std::string &text, std::vector<PetscInt> &values)
+std::string Trim(const std::string &text)
 {
-  PetscFunctionBeginUser;
-  values.clear();
-  size_t pos = 0;
-  while (pos < text.size()) {
-    size_t end = text.find(',', pos);
-    if (end == std::string::npos) end = text.size();
-    std::string item = text.substr(pos, end - pos);
-    char       *stop = nullptr;
-    long        v    = std::strtol(item.c_str(), &stop, 10);
-    if (item.empty() || *stop != '\0') SIGNORINI_INPUT_ERROR(comm, "option %s: '%s' is not a comma-separated list of integers", option.c_str(), text.c_str());
-    values.push_back((PetscInt)v);
+  const size_t first = text.find_first_not_of(" \t"), last = text.find_last_not_of(" \t");
+  return first == std::string::npos ? "" : text.substr(first, last - first + 1);
+}
+
+std::string ReadInt(const std::string &option, const std::string &text, PetscInt min, PetscInt max, PetscInt &value)
+{
+  const std::string item = Trim(text);
+  char             *stop = nullptr;
+  errno                  = 0;
+  // strtoll, not PETSc's conversion (which wraps modulo 2^32 in 3.18); the range is checked before the
+  // value is narrowed to PetscInt.
+  const long long v = item.empty() ? 0 : std::strtoll(item.c_str(), &stop, 10);
+  if (item.empty() || *stop != '\0') return Format("option %s: '%s' is not an integer", option.c_str(), item.c_str());
+  if (errno == ERANGE || v < min || v > max) return Format("option %s: %s is out of range (an integer from %" PetscInt_FMT " to %" PetscInt_FMT ")", option.c_str(), item.c_str(), min, max);
+  value = (PetscInt)v;
+  return "";
+}
+
+std::string ReadList(const std::string &option, const std::string &text, const std::function<std::string(const std::string &)> &item)
+{
+  if (Trim(text).empty()) return "";
+  for (size_t pos = 0;;) {
+    const size_t      end  = std::min(text.find(',', pos), text.size());
+    const std::string part = text.substr(pos, end - pos);
+    if (Trim(part).empty()) return Format("option %s: '%s' is not a comma-separated list (an empty entry)", option.c_str(), text.c_str());
+    const std::string error = item(part);
+    if (!error.empty() || end == text.size()) return error;
     pos = end + 1;
   }
+}
+
+std::string ReadIntList(const std::string &option, const std::string &text, PetscInt min, PetscInt max, std::vector<PetscInt> &values)
+{
+  values.clear();
+  return ReadList(option, text, [&](const std::string &part) {
+    PetscInt          v     = 0;
+    const std::string error = ReadInt(option, part, min, max, v);
+    values.push_back(v);
+    return error;
+  });
+}
+
+PetscErrorCode ParseIntList(MPI_Comm comm, const std::string &option, const std::string &text, std::vector<PetscInt> &values, PetscInt min, PetscInt max)
+{
+  PetscFunctionBeginUser;
+  const std::string error = ReadIntList(option, text, min, max, values);
+  if (!error.empty()) SIGNORINI_INPUT_ERROR(comm, "%s", error.c_str());
   PetscFunctionReturn(0);
 }
 

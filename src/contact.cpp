@@ -1,4 +1,5 @@
 #include "signorini/contact.h"
+#include "signorini/options.h"
 #include "signorini/report.h"
 #include "signorini/stages.h"
 
@@ -149,13 +150,11 @@ static PetscErrorCode SolveLinear(const System &sys, Vec u, SolveResult &r)
 
 PetscErrorCode SolveOptionsFromCommandLine(MPI_Comm comm, SolveOptions &o)
 {
-  PetscBool compare = o.compareLinear ? PETSC_TRUE : PETSC_FALSE;
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Solve", "signorini");
-  PetscCall(PetscOptionsReal("-kkt_tolerance", "Warn when the relative KKT residual on Gamma_C after the contact solve exceeds this (the solve stopped before the active set settled)", "", o.kktTolerance, &o.kktTolerance, NULL));
-  PetscCall(PetscOptionsBool("-compare_linear", "After the solve, time one linear solve of the same operator and right-hand side (same KSP/PC options) for comparison", "", compare, &compare, NULL));
+  PetscCall(OptionReal(PetscOptionsObject, "-kkt_tolerance", "Warn when the relative KKT residual on Gamma_C after the contact solve exceeds this (the solve stopped before the active set settled)", o.kktTolerance, 0));
+  PetscCall(OptionBool(PetscOptionsObject, "-compare_linear", "After the solve, time one linear solve of the same operator and right-hand side (same KSP/PC options) for comparison", o.compareLinear));
   PetscOptionsEnd();
-  o.compareLinear = compare;
   PetscCall(AmgReuseOptionsFromCommandLine(comm, o.amgReuse));
   PetscFunctionReturn(0);
 }

@@ -1,4 +1,5 @@
 #include "signorini/error.h"
+#include "signorini/options.h"
 #include "signorini/quadrature.h"
 #include "signorini/stages.h"
 
@@ -10,9 +11,8 @@ PetscErrorCode ErrorOptionsFromCommandLine(MPI_Comm comm, PetscInt &degree)
 {
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Error computation", "signorini");
-  PetscCall(PetscOptionsInt("-error_quadrature_degree", "Degree of the quadrature for error integrals", "", degree, &degree, NULL));
+  PetscCall(OptionInt(PetscOptionsObject, "-error_quadrature_degree", "Degree of the quadrature for error integrals", degree, 1, PETSC_MAX_INT));
   PetscOptionsEnd();
-  if (degree < 1) SIGNORINI_INPUT_ERROR(comm, "option -error_quadrature_degree: must be >= 1, got %" PetscInt_FMT, degree);
   PetscFunctionReturn(0);
 }
 
@@ -38,6 +38,8 @@ PetscErrorCode ErrorAgainstExact(const Space &space, const Problem &problem, Vec
       space.BasisGrad(c, i, g, grad);
       for (PetscInt d = 0; d < dim; ++d) gradh[d] += PetscRealPart(a[space.Dofs(c)[i]]) * grad[d];
     }
+    problem.exact->SetCellSet(space.CellSet(c));
+    problem.exactGrad->SetCellSet(space.CellSet(c));
     for (PetscInt q = 0; q < rule.Size(); ++q) {
       const PetscReal *lambda = rule.Point(q);
       PetscReal        x[3], uh = 0, du[3];

@@ -8,7 +8,7 @@ namespace signorini {
 
 Expression::~Expression() = default;
 
-PetscErrorCode Expression::Create(MPI_Comm comm, const std::string &option, const std::string &text, int components, std::unique_ptr<Expression> &expr)
+PetscErrorCode Expression::Create(MPI_Comm comm, const std::string &option, const std::string &text, int components, std::unique_ptr<Expression> &expr, At at)
 {
   PetscFunctionBeginUser;
   expr.reset(new Expression());
@@ -29,6 +29,8 @@ PetscErrorCode Expression::Create(MPI_Comm comm, const std::string &option, cons
     int           n = 0;
     const double *v = e.parser_->Eval(n); // muparser parses lazily: evaluate once so syntax errors surface here
     if (n != components) message = Format("option %s: '%s' has %d component(s), expected %d", option.c_str(), text.c_str(), n, components);
+    else if (at == At::Point && e.parser_->GetUsedVar().count("cell_set"))
+      message = Format("option %s: cell_set is not defined here (%s is a value at boundary points, which may touch cells of several sets; cell_set is defined in -kappa, -f, -g, -exact_u and -exact_grad)", option.c_str(), option.c_str());
     else if (e.parser_->GetUsedVar().empty()) {
       e.constant_ = true;
       for (int c = 0; c < n && c < 3; ++c) e.value_[c] = v[c];
@@ -37,6 +39,7 @@ PetscErrorCode Expression::Create(MPI_Comm comm, const std::string &option, cons
     std::string what = err.GetMsg();
     what.erase(what.find_last_not_of(" .") + 1);
     if (err.GetCode() == mu::ecUNASSIGNABLE_TOKEN) what += " (not a known name: the variables are x, y, z, cell_set and the constant pi)";
+    if (err.GetCode() == mu::ecEXPRESSION_TOO_LONG) what += Format(" (muparser takes at most %d characters)", (int)mu::MaxLenExpression);
     message = Format("option %s: cannot parse '%s': %s", option.c_str(), text.c_str(), what.c_str());
   }
   // Every rank parses the same text, so every rank reaches the same verdict.

@@ -12,15 +12,18 @@ static const char help[] =
 #include "signorini/error.h"
 #include "signorini/mesh.h"
 #include "signorini/nested.h"
+#include "signorini/options.h"
 #include "signorini/output.h"
 #include "signorini/problem.h"
 #include "signorini/report.h"
+#include "signorini/sizes.h"
 #include "signorini/space.h"
 #include "signorini/stages.h"
 #include "signorini/startup.h"
 #include "signorini/study.h"
 
 #include <cstdio>
+#include <functional>
 
 using namespace signorini;
 
@@ -38,19 +41,27 @@ struct Settings {
   NestedOptions   nested;
 };
 
-static PetscErrorCode ReadSettings(MPI_Comm comm, Settings &s)
+// Under -help every component lists its options whatever else is on the command line: an error of one
+// component (an incomplete scene, a bad value) must not hide the options of the others.
+static PetscErrorCode ReadSettings(MPI_Comm comm, Settings &s, bool help)
 {
+  const std::function<PetscErrorCode()> readers[] = {
+    [&] { return MeshOptionsFromCommandLine(comm, s.mesh); },
+    [&] { return ElementFromCommandLine(comm, s.element); },
+    [&] { return ProblemFromCommandLine(comm, s.problem); },
+    [&] { return AssemblyOptionsFromCommandLine(comm, s.assembly); },
+    [&] { return ErrorOptionsFromCommandLine(comm, s.errorDegree); },
+    [&] { return ReportOptionsFromCommandLine(comm, s.summaryFile); },
+    [&] { return OutputOptionsFromCommandLine(comm, s.output); },
+    [&] { return StudyOptionsFromCommandLine(comm, s.study); },
+    [&] { return SolveOptionsFromCommandLine(comm, s.solve); },
+    [&] { return NestedOptionsFromCommandLine(comm, s.nested); },
+  };
   PetscFunctionBeginUser;
-  PetscCall(MeshOptionsFromCommandLine(comm, s.mesh));
-  PetscCall(ElementFromCommandLine(comm, s.element));
-  PetscCall(ProblemFromCommandLine(comm, s.problem));
-  PetscCall(AssemblyOptionsFromCommandLine(comm, s.assembly));
-  PetscCall(ErrorOptionsFromCommandLine(comm, s.errorDegree));
-  PetscCall(ReportOptionsFromCommandLine(comm, s.summaryFile));
-  PetscCall(OutputOptionsFromCommandLine(comm, s.output));
-  PetscCall(StudyOptionsFromCommandLine(comm, s.study));
-  PetscCall(SolveOptionsFromCommandLine(comm, s.solve));
-  PetscCall(NestedOptionsFromCommandLine(comm, s.nested));
+  for (const auto &read : readers) {
+    const PetscErrorCode ierr = read();
+    if (!help) PetscCall(OptionsAsInputError(comm, ierr));
+  }
   PetscFunctionReturn(0);
 }
 
@@ -69,19 +80,22 @@ static PetscErrorCode Run(MPI_Comm comm)
   PetscFunctionBeginUser;
   PetscCall(PetscTime(&start));
   PetscCall(StagesRegister());
-  PetscCall(OptionsAsInputError(comm, ReadSettings(comm, s)));
   PetscCall(PetscOptionsHasHelp(NULL, &help));
+  PetscCall(ReadSettings(comm, s, help));
   if (help) {
-    PetscCall(SolverOptionsHelp(comm));
+    (void)SolverOptionsHelp(comm); // lists what it can; -help exits 0 whatever the options say
     PetscFunctionReturn(0);
   }
+  PetscCall(CheckUnknownOptions(comm)); // a mistyped option fails now, not after the run
 
   // mesh -> space -> assembly -> solve -> errors -> report -> output
   // Nested iteration needs the coarser levels of the refinement; a scene without contact is one linear solve.
   const bool nested = s.nested.enabled && s.mesh.refine > 0 && s.nested.levels != 0 && s.study.levels == 0 && !s.problem.contact.empty();
   MeshLevels levels;
   // The scene is checked against the coarse mesh (dimension, boundary parts) before the refinement.
-  PetscCall(MeshCreate(comm, s.mesh, &mesh, meshInfo, nested ? &levels : nullptr, s.nested.levels, [&](DM coarse) { return ProblemCheckMesh(coarse, s.problem); }));
+  // The sizes are checked against the coarse mesh before it is built (box) or distributed (file).
+  PetscCall(MeshCreate(comm, s.mesh, &mesh, meshInfo, nested ? &levels : nullptr, s.nested.levels, [&](DM coarse) { return ProblemCheckMesh(coarse, s.problem); },
+                       [&](const MeshCounts &coarse) { return CheckSizes(comm, s.mesh, coarse, s.element, s.study); }));
   PetscInt dim;
   PetscCall(DMGetDimension(mesh, &dim));
   if (s.study.levels > 0) {
@@ -133,7 +147,7 @@ static PetscErrorCode Run(MPI_Comm comm)
   report.mesh          = meshInfo.description;
   report.loadRule      = s.assembly.centroid ? "centroid" : Format("accurate (degree %d)", (int)s.assembly.loadDegree);
   report.dim           = dim;
-  report.refine        = s.mesh.refine;
+  report.refine        = s.mesh.refine - s.mesh.coarsened; // as asked: the box's own refinements are in report.mesh
   report.coarseCells   = meshInfo.coarseCells;
   report.cells         = meshInfo.cells;
   report.cellsPerRank  = meshInfo.cellsPerRank;

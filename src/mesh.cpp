@@ -1,6 +1,8 @@
 #include "signorini/mesh.h"
 #include "signorini/gmsh.h"
+#include "signorini/options.h"
 #include "signorini/refine.h"
+#include "signorini/sizes.h"
 #include "signorini/stages.h"
 
 #include <metis.h>
@@ -10,45 +12,84 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-
-static_assert(sizeof(idx_t) == sizeof(PetscInt), "METIS idx_t and PetscInt must have the same width");
+#include <limits>
 
 namespace signorini {
 
+// Counts and corners of the box: one value for every direction, or exactly one per direction.
+template <typename T>
+static PetscErrorCode BoxValues(MPI_Comm comm, const char *option, PetscInt dim, bool set, const std::vector<T> &given, T values[3])
+{
+  PetscFunctionBeginUser;
+  if (!set) PetscFunctionReturn(0);
+  if (given.size() != 1 && (PetscInt)given.size() != dim) SIGNORINI_INPUT_ERROR(comm, "option %s: %d values for a %dD box; give one value (all directions) or %d", option, (int)given.size(), (int)dim, (int)dim);
+  for (PetscInt d = 0; d < 3; ++d) values[d] = given.size() == 1 ? given[0] : d < dim ? given[d] : values[d];
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode MeshOptionsFromCommandLine(MPI_Comm comm, MeshOptions &o)
 {
-  char        file[PETSC_MAX_PATH_LEN] = "", part[64] = "metis";
-  const char *diagonals[]              = {"slash", "backslash", "crossed"};
-  const char *refinements[]            = {"direct", "transform"};
-  PetscInt    diag = (PetscInt)o.diagonal, nfaces = 3, nlo = 3, nhi = 3, how = (PetscInt)o.refinement;
-  PetscBool   setFaces = PETSC_FALSE;
+  PetscInt               diag = (PetscInt)o.diagonal, how = (PetscInt)o.refinement;
+  bool                   setFaces = false, setLower = false, setUpper = false;
+  PetscMPIInt            size;
+  std::vector<PetscInt>  faces;
+  std::vector<PetscReal> lower, upper;
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Mesh options", "signorini");
-  PetscCall(PetscOptionsString("-mesh_file", "Gmsh .msh file (physical groups name boundary parts); default: built-in box", "", file, file, sizeof file, NULL));
-  PetscCall(PetscOptionsInt("-dim", "Dimension of the built-in box (2 or 3)", "", o.dim, &o.dim, NULL));
-  PetscCall(PetscOptionsIntArray("-box_faces", "Cells per direction of the coarse box, e.g. 64,64", "", o.faces, &nfaces, &setFaces));
-  PetscCall(PetscOptionsRealArray("-box_lower", "Lower corner of the box", "", o.lower, &nlo, NULL));
-  PetscCall(PetscOptionsRealArray("-box_upper", "Upper corner of the box", "", o.upper, &nhi, NULL));
-  PetscCall(PetscOptionsEList("-box_diagonal", "2D: how each square is cut: slash (0,0)-(1,1), backslash (1,0)-(0,1), crossed (4 triangles)", "", diagonals, 3, diagonals[diag], &diag, NULL));
-  PetscCall(PetscOptionsInt("-refine", "Uniform refinements in parallel after distribution", "", o.refine, &o.refine, NULL));
-  PetscCall(PetscOptionsEList("-mesh_refinement", "How the mesh is refined: direct (the fine DMPlex built from the coarse one) or transform (PETSc's DMPlexTransform; the same mesh, slower)", "", refinements, 2, refinements[how], &how, NULL));
-  PetscCall(PetscOptionsString("-mesh_partitioner", "metis (libmetis on the coarse cell graph) or a PetscPartitioner type (ptscotch, simple)", "", part, part, sizeof part, NULL));
+  PetscCall(OptionString(PetscOptionsObject, "-mesh_file", "Gmsh .msh file (physical groups name boundary parts); default: built-in box", o.file));
+  PetscCall(OptionInt(PetscOptionsObject, "-dim", "Dimension of the built-in box (2 or 3)", o.dim, 2, 3));
+  faces.assign(o.faces, o.faces + o.dim); // the defaults, as -help shows them
+  lower.assign(o.lower, o.lower + o.dim);
+  upper.assign(o.upper, o.upper + o.dim);
+  PetscCall(OptionIntList(PetscOptionsObject, "-box_faces", "Cells per direction of the box: one count for every direction (64) or one per direction (64,32); built as the coarsest box that refines to it, see -box_coarsen", faces, 1, PETSC_MAX_INT, &setFaces));
+  PetscCall(OptionRealList(PetscOptionsObject, "-box_lower", "Lower corner of the box: one coordinate for every direction or one per direction", lower, &setLower));
+  PetscCall(OptionRealList(PetscOptionsObject, "-box_upper", "Upper corner of the box: one coordinate for every direction or one per direction", upper, &setUpper));
+  PetscCall(OptionEList(PetscOptionsObject, "-box_diagonal", "2D: how each square is cut: slash (0,0)-(1,1), backslash (1,0)-(0,1), crossed (4 triangles; built directly, without -box_coarsen)", {"slash", "backslash", "crossed"}, diag));
+  PetscCall(OptionBool(PetscOptionsObject, "-box_coarsen", "Build the box as the coarsest box whose uniform refinement is the same mesh (slash, backslash, 3D), refined in parallel (0: build it on rank 0 as asked)", o.coarsen));
+  PetscCall(OptionInt(PetscOptionsObject, "-refine", "Uniform refinements in parallel after distribution", o.refine, 0, PETSC_MAX_INT));
+  PetscCall(OptionEList(PetscOptionsObject, "-mesh_refinement", "How the mesh is refined: direct (the fine DMPlex built from the coarse one) or transform (PETSc's DMPlexTransform; the same mesh, slower)", {"direct", "transform"}, how));
+  PetscCall(OptionBool(PetscOptionsObject, "-memory_check", "Refuse, before building anything, a run whose predicted peak memory exceeds the memory of the machine (per rank: its node's memory over the ranks on the node)", o.memoryCheck));
+  PetscCall(OptionString(PetscOptionsObject, "-mesh_partitioner", "metis (libmetis on the coarse cell graph) or a PetscPartitioner type (ptscotch, simple)", o.partitioner));
   PetscOptionsEnd();
-  o.file        = file;
-  o.partitioner = part;
-  o.diagonal    = (Diagonal)diag;
-  o.refinement  = (Refinement)how;
+  o.diagonal   = (Diagonal)diag;
+  o.refinement = (Refinement)how;
   if (o.file.empty()) {
-    if (o.dim != 2 && o.dim != 3) SIGNORINI_INPUT_ERROR(comm, "option -dim: must be 2 or 3, got %" PetscInt_FMT, o.dim);
-    if (setFaces && nfaces == 1)
-      for (PetscInt d = 1; d < 3; ++d) o.faces[d] = o.faces[0]; // "-box_faces 16" means 16 in every direction
-    for (PetscInt d = 0; d < o.dim; ++d) {
-      if (o.faces[d] <= 0) SIGNORINI_INPUT_ERROR(comm, "option -box_faces: cell counts must be positive, got %" PetscInt_FMT " in direction %" PetscInt_FMT, o.faces[d], d);
+    PetscCall(BoxValues(comm, "-box_faces", o.dim, setFaces, faces, o.faces));
+    PetscCall(BoxValues(comm, "-box_lower", o.dim, setLower, lower, o.lower));
+    PetscCall(BoxValues(comm, "-box_upper", o.dim, setUpper, upper, o.upper));
+    for (PetscInt d = 0; d < o.dim; ++d)
       if (!(o.lower[d] < o.upper[d])) SIGNORINI_INPUT_ERROR(comm, "options -box_lower/-box_upper: lower %g is not below upper %g in direction %" PetscInt_FMT, (double)o.lower[d], (double)o.upper[d], d);
-    }
   }
-  if (o.refine < 0) SIGNORINI_INPUT_ERROR(comm, "option -refine: must be >= 0, got %" PetscInt_FMT, o.refine);
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  CoarsenBox(o, size);
   PetscFunctionReturn(0);
+}
+
+// METIS balances the coarse cells to within a few per cent, and each refinement keeps the proportions:
+// some tens of coarse cells per rank give every rank its share of the fine mesh. Fewer make the partition
+// coarse-grained (one cell more or less is a large fraction), more make the serial start larger for
+// nothing: 64 puts 2D N = 64 at box 8 (128 cells) on 1 and 2 ranks, the fast path documented before.
+static const PetscInt kMinCoarseCellsPerRank = 64;
+
+void CoarsenBox(MeshOptions &o, PetscMPIInt ranks)
+{
+  o.coarsened = 0;
+  if (!o.file.empty() || !o.coarsen || (o.dim == 2 && o.diagonal == Diagonal::Crossed)) return;
+  const auto cells = [&o](PetscInt k) {
+    PetscInt64 n = o.dim == 2 ? 2 : 6;
+    for (PetscInt d = 0; d < o.dim; ++d) n *= o.faces[d] >> k;
+    return n;
+  };
+  const auto halves = [&o](PetscInt k) { // every count is n 2^(k+1) with n >= 1
+    for (PetscInt d = 0; d < o.dim; ++d)
+      if ((o.faces[d] >> k) % 2) return false;
+    return true;
+  };
+  PetscInt k = 0;
+  while (halves(k) && cells(k + 1) >= kMinCoarseCellsPerRank * (PetscInt64)ranks && o.refine + k < PETSC_MAX_INT) ++k;
+  for (PetscInt d = 0; d < o.dim; ++d) o.faces[d] >>= k;
+  o.refine += k;
+  o.coarsened = k;
 }
 
 // Signed measure factor (determinant of the edge matrix) of a simplex given by dim+1 vertex indices.
@@ -90,25 +131,32 @@ static void BoxCellList(const MeshOptions &o, std::vector<PetscInt> &cells, std:
         }
       }
   } else {
-    // Kuhn (Freudenthal) split: one tetrahedron per monotone path from corner 000 to corner 111.
+    // Kuhn (Freudenthal) split: one tetrahedron per monotone path x0 = corner 000, x1, x2, x3 = corner 111.
+    // Listed as (x0, x2, x1, x3): both refinements cut the inner octahedron along the diagonal between the
+    // midpoints of v0v1 and v2v3, here m02-m13, and that cut makes the eight children the Kuhn cells of the
+    // box with twice the cells (also in their own refinements): a refined Kuhn box is the finer Kuhn box
+    // (tests/unit_fastpath.cpp), which the fast path of -box_faces relies on. The orientation fix below
+    // swaps v2 and v3, which keeps the two pairs.
     const PetscInt perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
     for (PetscInt k = 0; k < L; ++k)
       for (PetscInt j = 0; j < M; ++j)
         for (PetscInt i = 0; i < N; ++i)
           for (const auto &p : perms) {
-            PetscInt pos[3] = {i, j, k};
-            cells.push_back(vid(pos[0], pos[1], pos[2]));
+            PetscInt pos[3] = {i, j, k}, x[4];
+            x[0] = vid(pos[0], pos[1], pos[2]);
             for (PetscInt s = 0; s < 3; ++s) {
               pos[p[s]]++;
-              cells.push_back(vid(pos[0], pos[1], pos[2]));
+              x[s + 1] = vid(pos[0], pos[1], pos[2]);
             }
+            cells.insert(cells.end(), {x[0], x[2], x[1], x[3]});
           }
   }
   const PetscInt nc = (PetscInt)cells.size() / (dim + 1);
   for (PetscInt c = 0; c < nc; ++c) {
     PetscInt *v   = &cells[c * (dim + 1)];
     PetscReal det = SimplexDet(dim, v, X);
-    if ((dim == 2 && det < 0) || (dim == 3 && det > 0)) std::swap(v[1], v[2]);
+    if (dim == 2 && det < 0) std::swap(v[1], v[2]);
+    if (dim == 3 && det > 0) std::swap(v[2], v[3]);
   }
 }
 
@@ -141,6 +189,13 @@ static PetscErrorCode LabelBoxSides(DM dm, const MeshOptions &o)
   PetscFunctionReturn(0);
 }
 
+std::string BoxName(const MeshOptions &o)
+{
+  const PetscInt k = o.coarsened;
+  if (o.dim == 2) return Format("box %" PetscInt_FMT "x%" PetscInt_FMT, o.faces[0] << k, o.faces[1] << k);
+  return Format("box %" PetscInt_FMT "x%" PetscInt_FMT "x%" PetscInt_FMT, o.faces[0] << k, o.faces[1] << k, o.faces[2] << k);
+}
+
 static PetscErrorCode CreateBox(MPI_Comm comm, const MeshOptions &o, DM *dm, std::string &description)
 {
   PetscMPIInt            rank;
@@ -152,8 +207,12 @@ static PetscErrorCode CreateBox(MPI_Comm comm, const MeshOptions &o, DM *dm, std
   const PetscInt nc = (PetscInt)cells.size() / (o.dim + 1), nv = (PetscInt)X.size() / o.dim;
   PetscCall(DMPlexCreateFromCellListPetsc(comm, o.dim, nc, nv, o.dim + 1, PETSC_TRUE, cells.data(), o.dim, X.data(), dm));
   PetscCall(LabelBoxSides(*dm, o));
+  // What was asked, and how it was built.
   static const char *diag[] = {"slash", "backslash", "crossed"};
-  description               = o.dim == 2 ? Format("box %dx%d %s", (int)o.faces[0], (int)o.faces[1], diag[(int)o.diagonal]) : Format("box %dx%dx%d", (int)o.faces[0], (int)o.faces[1], (int)o.faces[2]);
+  MeshOptions        built  = o;
+  built.coarsened           = 0;
+  description               = BoxName(o) + (o.dim == 2 ? std::string(" ") + diag[(int)o.diagonal] : std::string());
+  if (o.coarsened > 0) description += Format(" (built as %s refined %d times)", BoxName(built).c_str(), (int)o.coarsened);
   PetscFunctionReturn(0);
 }
 
@@ -333,11 +392,16 @@ static PetscErrorCode PartitionWithMetis(DM dm, PetscInt &edgeCut)
   std::vector<idx_t> part(nv, 0);
   idx_t              objval = 0;
   int                status = METIS_OK;
+  // METIS has its own index type (32-bit in Debian's libmetis) and PetscInt may be 64-bit: the coarse
+  // graph is small (the coarse mesh is), so it is copied rather than cast.
+  const PetscInt arcs = nv > 0 ? offsets[nv] : 0;
+  PetscCall(CheckAll(comm, arcs <= (PetscInt)std::numeric_limits<idx_t>::max(), Format("the coarse cell graph has %" PetscInt_FMT " arcs, beyond the index range of METIS; use -mesh_partitioner ptscotch", arcs)));
   if (nv > size) {
-    idx_t nvtx = nv, ncon = 1, nparts = size, options[METIS_NOPTIONS];
+    std::vector<idx_t> xadj(offsets, offsets + nv + 1), adjncy(adjacency, adjacency + arcs);
+    idx_t              nvtx = (idx_t)nv, ncon = 1, nparts = size, options[METIS_NOPTIONS];
     METIS_SetDefaultOptions(options);
     options[METIS_OPTION_NUMBERING] = 0;
-    status = METIS_PartGraphKway(&nvtx, &ncon, offsets, adjacency, NULL, NULL, NULL, &nparts, NULL, NULL, options, &objval, part.data());
+    status = METIS_PartGraphKway(&nvtx, &ncon, xadj.data(), adjncy.data(), NULL, NULL, NULL, &nparts, NULL, NULL, options, &objval, part.data());
   } else {
     for (PetscInt i = 0; i < nv; ++i) part[i] = (idx_t)i; // fewer cells than ranks: one cell each
   }
@@ -477,7 +541,8 @@ PetscErrorCode MeshLevelsDestroy(MeshLevels &levels)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &o, DM *dm, MeshInfo &info, MeshLevels *levels, PetscInt keep, const std::function<PetscErrorCode(DM)> &checkCoarse)
+PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &o, DM *dm, MeshInfo &info, MeshLevels *levels, PetscInt keep, const std::function<PetscErrorCode(DM)> &checkCoarse,
+                          const std::function<PetscErrorCode(const MeshCounts &)> &checkSizes)
 {
   PetscMPIInt size;
   PetscInt    cStart, cEnd;
@@ -486,8 +551,17 @@ PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &o, DM *dm, MeshInfo 
   PetscCall(CheckPartitioner(comm, o.partitioner));
 
   PetscCall(StagePush(Stage::Mesh));
-  if (o.file.empty()) PetscCall(CreateBox(comm, o, dm, info.description));
-  else PetscCall(CreateFromGmsh(comm, o, dm, info.description));
+  if (o.file.empty()) {
+    if (checkSizes) PetscCall(checkSizes(BoxCounts(o)));
+    PetscCall(CreateBox(comm, o, dm, info.description));
+  } else {
+    PetscCall(CreateFromGmsh(comm, o, dm, info.description));
+    if (checkSizes) {
+      MeshCounts counts;
+      PetscCall(CountMesh(*dm, counts));
+      PetscCall(checkSizes(counts));
+    }
+  }
   PetscCall(PetscObjectSetName((PetscObject)*dm, "mesh"));
   PetscCall(DMPlexGetHeightStratum(*dm, 0, &cStart, &cEnd));
   PetscInt local = cEnd - cStart;

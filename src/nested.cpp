@@ -1,4 +1,5 @@
 #include "signorini/nested.h"
+#include "signorini/options.h"
 #include "signorini/stages.h"
 
 #include <cmath>
@@ -7,14 +8,11 @@ namespace signorini {
 
 PetscErrorCode NestedOptionsFromCommandLine(MPI_Comm comm, NestedOptions &o)
 {
-  PetscBool enabled = o.enabled ? PETSC_TRUE : PETSC_FALSE;
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Nested iteration", "signorini");
-  PetscCall(PetscOptionsBool("-nested", "Solve on the coarser refinement levels first and start each level from the prolongated coarser solution", "", enabled, &enabled, NULL));
-  PetscCall(PetscOptionsInt("-nested_levels", "Coarse levels solved before the finest one (-1: all refinement levels)", "", o.levels, &o.levels, NULL));
+  PetscCall(OptionBool(PetscOptionsObject, "-nested", "Solve on the coarser refinement levels first and start each level from the prolongated coarser solution", o.enabled));
+  PetscCall(OptionInt(PetscOptionsObject, "-nested_levels", "Coarse levels solved before the finest one (-1: all refinement levels)", o.levels, -1, PETSC_MAX_INT));
   PetscOptionsEnd();
-  o.enabled = enabled;
-  if (o.levels < -1) SIGNORINI_INPUT_ERROR(comm, "option -nested_levels: must be >= 0, or -1 for all levels, got %" PetscInt_FMT, o.levels);
   PetscFunctionReturn(0);
 }
 

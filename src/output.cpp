@@ -1,4 +1,5 @@
 #include "signorini/output.h"
+#include "signorini/options.h"
 #include "signorini/layout.h"
 #include "signorini/mesh.h"
 #include "signorini/report.h"
@@ -13,12 +14,10 @@ namespace signorini {
 
 PetscErrorCode OutputOptionsFromCommandLine(MPI_Comm comm, OutputOptions &o)
 {
-  char file[PETSC_MAX_PATH_LEN] = "";
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Output", "signorini");
-  PetscCall(PetscOptionsString("-output", "Write mesh and solution to FILE.h5 (HDF5) and FILE.xmf (XDMF for ParaView)", "", file, file, sizeof file, NULL));
+  PetscCall(OptionString(PetscOptionsObject, "-output", "Write mesh and solution to FILE.h5 (HDF5) and FILE.xmf (XDMF for ParaView)", o.file));
   PetscOptionsEnd();
-  o.file = file;
   if (!o.file.empty() && (o.file.size() < 4 || o.file.substr(o.file.size() - 3) != ".h5")) SIGNORINI_INPUT_ERROR(comm, "option -output: '%s' must end in .h5", o.file.c_str());
   if (!o.file.empty()) PetscCall(CheckWritable(comm, "-output", o.file));
   PetscFunctionReturn(0);

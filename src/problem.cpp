@@ -1,6 +1,7 @@
 #include "signorini/problem.h"
 
 #include "signorini/mesh.h"
+#include "signorini/options.h"
 
 #include <algorithm>
 
@@ -17,28 +18,23 @@ static PetscErrorCode CheckDetermined(MPI_Comm comm, const Problem &p)
 
 PetscErrorCode ProblemFromCommandLine(MPI_Comm comm, Problem &p)
 {
-  char      scene[256] = "custom", dir[256] = "", neu[256] = "", con[256] = "";
-  char      f[4096] = "0", g[4096] = "0", uD[4096] = "0", psi[4096] = "0", kappa[4096] = "1", ex[4096] = "", exg[4096] = "";
-  PetscBool hasExact = PETSC_FALSE, hasGrad = PETSC_FALSE;
+  std::string f = "0", g = "0", uD = "0", psi = "0", kappa = "1", ex, exg;
+  bool        hasExact = false, hasGrad = false;
   PetscFunctionBeginUser;
-  PetscOptionsBegin(comm, "", "Scene: boundary parts and data (expressions in x, y, z; constant pi)", "signorini");
-  PetscCall(PetscOptionsString("-scene", "Name of the scene, reported in the summary", "", scene, scene, sizeof scene, NULL));
-  PetscCall(PetscOptionsString("-bc_dirichlet", "Face Sets values of Gamma_D, comma separated", "", dir, dir, sizeof dir, NULL));
-  PetscCall(PetscOptionsString("-bc_neumann", "Face Sets values of Gamma_N", "", neu, neu, sizeof neu, NULL));
-  PetscCall(PetscOptionsString("-bc_contact", "Face Sets values of Gamma_C (u >= psi there)", "", con, con, sizeof con, NULL));
-  PetscCall(PetscOptionsString("-f", "Source f in -div(kappa grad u) = f", "", f, f, sizeof f, NULL));
-  PetscCall(PetscOptionsString("-g", "Neumann flux g = kappa du/dn on Gamma_N", "", g, g, sizeof g, NULL));
-  PetscCall(PetscOptionsString("-u_D", "Dirichlet value on Gamma_D", "", uD, uD, sizeof uD, NULL));
-  PetscCall(PetscOptionsString("-psi", "Obstacle on Gamma_C", "", psi, psi, sizeof psi, NULL));
-  PetscCall(PetscOptionsString("-kappa", "Coefficient kappa > 0, taken constant per cell (value at the centroid); may use cell_set", "", kappa, kappa, sizeof kappa, NULL));
-  PetscCall(PetscOptionsString("-exact_u", "Exact solution, if known", "", ex, ex, sizeof ex, &hasExact));
-  PetscCall(PetscOptionsString("-exact_grad", "Gradient of the exact solution, dim comma-separated components", "", exg, exg, sizeof exg, &hasGrad));
+  PetscOptionsBegin(comm, "", "Scene: boundary parts and data (expressions in x, y, z, cell_set; constant pi)", "signorini");
+  PetscCall(OptionString(PetscOptionsObject, "-scene", "Name of the scene, reported in the summary", p.scene));
+  PetscCall(OptionIntList(PetscOptionsObject, "-bc_dirichlet", "Face Sets values of Gamma_D, comma separated", p.dirichlet, PETSC_MIN_INT, PETSC_MAX_INT));
+  PetscCall(OptionIntList(PetscOptionsObject, "-bc_neumann", "Face Sets values of Gamma_N", p.neumann, PETSC_MIN_INT, PETSC_MAX_INT));
+  PetscCall(OptionIntList(PetscOptionsObject, "-bc_contact", "Face Sets values of Gamma_C (u >= psi there)", p.contact, PETSC_MIN_INT, PETSC_MAX_INT));
+  PetscCall(OptionString(PetscOptionsObject, "-f", "Source f in -div(kappa grad u) = f; cell_set is the Cell Sets value of the cell integrated over", f));
+  PetscCall(OptionString(PetscOptionsObject, "-g", "Neumann flux g = kappa du/dn on Gamma_N; cell_set is that of the one cell next to the Neumann face", g));
+  PetscCall(OptionString(PetscOptionsObject, "-u_D", "Dirichlet value on Gamma_D (a value at boundary points, which may touch cells of several sets: no cell_set)", uD));
+  PetscCall(OptionString(PetscOptionsObject, "-psi", "Obstacle on Gamma_C (a value at boundary points, which may touch cells of several sets: no cell_set)", psi));
+  PetscCall(OptionString(PetscOptionsObject, "-kappa", "Coefficient kappa > 0, taken constant per cell (value at the centroid); cell_set is the cell's Cell Sets value", kappa));
+  PetscCall(OptionString(PetscOptionsObject, "-exact_u", "Exact solution, if known (cell_set: that of the cell of the error integral)", ex, &hasExact));
+  PetscCall(OptionString(PetscOptionsObject, "-exact_grad", "Gradient of the exact solution, dim comma-separated components (cell_set as in -exact_u)", exg, &hasGrad));
   PetscOptionsEnd();
 
-  p.scene = scene;
-  PetscCall(ParseIntList(comm, "-bc_dirichlet", dir, p.dirichlet));
-  PetscCall(ParseIntList(comm, "-bc_neumann", neu, p.neumann));
-  PetscCall(ParseIntList(comm, "-bc_contact", con, p.contact));
   const std::pair<const char *, std::vector<PetscInt> *> parts[] = {{"-bc_dirichlet", &p.dirichlet}, {"-bc_neumann", &p.neumann}, {"-bc_contact", &p.contact}};
   for (int a = 0; a < 3; ++a)
     for (int b = a + 1; b < 3; ++b)
@@ -49,8 +45,8 @@ PetscErrorCode ProblemFromCommandLine(MPI_Comm comm, Problem &p)
 
   PetscCall(Expression::Create(comm, "-f", f, 1, p.f));
   PetscCall(Expression::Create(comm, "-g", g, 1, p.g));
-  PetscCall(Expression::Create(comm, "-u_D", uD, 1, p.uD));
-  PetscCall(Expression::Create(comm, "-psi", psi, 1, p.psi));
+  PetscCall(Expression::Create(comm, "-u_D", uD, 1, p.uD, Expression::At::Point));
+  PetscCall(Expression::Create(comm, "-psi", psi, 1, p.psi, Expression::At::Point));
   PetscCall(Expression::Create(comm, "-kappa", kappa, 1, p.kappa));
   if (hasExact != hasGrad) SIGNORINI_INPUT_ERROR(comm, "options -exact_u and -exact_grad: give both or neither");
   if (hasExact) PetscCall(Expression::Create(comm, "-exact_u", ex, 1, p.exact));

@@ -1,4 +1,5 @@
 #include "signorini/report.h"
+#include "signorini/options.h"
 
 #include <sys/resource.h>
 
@@ -11,12 +12,10 @@ namespace signorini {
 
 PetscErrorCode ReportOptionsFromCommandLine(MPI_Comm comm, std::string &summaryFile)
 {
-  char file[PETSC_MAX_PATH_LEN] = "";
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Summary", "signorini");
-  PetscCall(PetscOptionsString("-summary", "Write the run's figures as JSON to this file", "", file, file, sizeof file, NULL));
+  PetscCall(OptionString(PetscOptionsObject, "-summary", "Write the run's figures as JSON to this file", summaryFile));
   PetscOptionsEnd();
-  summaryFile = file;
   if (!summaryFile.empty()) PetscCall(CheckWritable(comm, "-summary", summaryFile));
   PetscFunctionReturn(0);
 }

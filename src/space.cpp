@@ -1,4 +1,5 @@
 #include "signorini/space.h"
+#include "signorini/options.h"
 #include "signorini/layout.h"
 #include "signorini/mesh.h"
 
@@ -12,11 +13,10 @@ const char *ElementName(Element e) { return e == Element::P1 ? "p1" : "cr"; }
 
 PetscErrorCode ElementFromCommandLine(MPI_Comm comm, Element &e)
 {
-  const char *names[] = {"p1", "cr"};
-  PetscInt    which   = (PetscInt)e;
+  PetscInt which = (PetscInt)e;
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Discrete space", "signorini");
-  PetscCall(PetscOptionsEList("-space", "Finite element: p1 (conforming, vertex DOFs) or cr (Crouzeix-Raviart, face DOFs)", "", names, 2, names[which], &which, NULL));
+  PetscCall(OptionEList(PetscOptionsObject, "-space", "Finite element: p1 (conforming, vertex DOFs) or cr (Crouzeix-Raviart, face DOFs)", {"p1", "cr"}, which));
   PetscOptionsEnd();
   e = (Element)which;
   PetscFunctionReturn(0);

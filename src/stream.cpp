@@ -6,6 +6,7 @@ static const char help[] =
   "  mpirun -n P signorini-stream [-stream_n doubles per rank and array] [-stream_repeat K]\n\n";
 
 #include "signorini/common.h"
+#include "signorini/options.h"
 
 #include <algorithm>
 #include <limits>
@@ -22,11 +23,9 @@ static PetscErrorCode StreamOptionsFromCommandLine(MPI_Comm comm, StreamOptions 
 {
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, NULL, "Memory bandwidth (STREAM triad)", NULL);
-  PetscCall(PetscOptionsInt("-stream_n", "doubles in each of the three arrays of every rank", NULL, o.n, &o.n, NULL));
-  PetscCall(PetscOptionsInt("-stream_repeat", "timed triads; the fastest counts", NULL, o.repeat, &o.repeat, NULL));
+  PetscCall(OptionInt(PetscOptionsObject, "-stream_n", "doubles in each of the three arrays of every rank", o.n, 1, PETSC_MAX_INT));
+  PetscCall(OptionInt(PetscOptionsObject, "-stream_repeat", "timed triads; the fastest counts", o.repeat, 1, PETSC_MAX_INT));
   PetscOptionsEnd();
-  if (o.n < 1) SIGNORINI_INPUT_ERROR(comm, "option -stream_n: %d is not a positive array length", (int)o.n);
-  if (o.repeat < 1) SIGNORINI_INPUT_ERROR(comm, "option -stream_repeat: %d is not a positive count", (int)o.repeat);
   PetscFunctionReturn(0);
 }
 
@@ -65,6 +64,7 @@ static PetscErrorCode Run(MPI_Comm comm)
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_size(comm, &size));
   PetscCall(OptionsAsInputError(comm, StreamOptionsFromCommandLine(comm, o)));
+  PetscCall(CheckUnknownOptions(comm));
   PetscCall(Triad(comm, o, &rate));
   PetscCall(PetscPrintf(comm, "triad bandwidth: %.3f GB/s on %d rank(s), %.3f GB/s per rank (%d doubles per array and rank, fastest of %d)\n", rate / 1e9, size, rate / 1e9 / size, (int)o.n, (int)o.repeat));
   PetscFunctionReturn(0);

@@ -1,4 +1,5 @@
 #include "signorini/study.h"
+#include "signorini/options.h"
 #include "signorini/output.h"
 #include "signorini/report.h"
 
@@ -10,21 +11,18 @@ namespace signorini {
 
 PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, StudyOptions &o)
 {
-  const char *names[] = {"p1", "cr"};
-  PetscInt    ref     = (PetscInt)o.referenceElement;
-  char        elements[64] = "p1,cr", file[PETSC_MAX_PATH_LEN] = "", profiles[PETSC_MAX_PATH_LEN] = "";
+  PetscInt    ref      = (PetscInt)o.referenceElement;
+  std::string elements = "p1,cr";
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Convergence study", "signorini");
-  PetscCall(PetscOptionsInt("-study_levels", "Solve on this many nested mesh levels (0: a single run)", "", o.levels, &o.levels, NULL));
-  PetscCall(PetscOptionsInt("-reference_refine", "Measure errors against a reference this many refinements beyond the finest level (0: none)", "", o.referenceRefine, &o.referenceRefine, NULL));
-  PetscCall(PetscOptionsEList("-reference_space", "Element of the reference solution", "", names, 2, names[ref], &ref, NULL));
-  PetscCall(PetscOptionsString("-study_spaces", "Elements studied, comma separated", "", elements, elements, sizeof elements, NULL));
-  PetscCall(PetscOptionsString("-study_output", "Write the study table as JSON to this file", "", file, file, sizeof file, NULL));
-  PetscCall(PetscOptionsString("-study_profiles", "On the finest level write PREFIX-<element>.h5 and PREFIX-<element>-contact.csv", "", profiles, profiles, sizeof profiles, NULL));
+  PetscCall(OptionInt(PetscOptionsObject, "-study_levels", "Solve on this many nested mesh levels (0: a single run)", o.levels, 0, PETSC_MAX_INT));
+  PetscCall(OptionInt(PetscOptionsObject, "-reference_refine", "Measure errors against a reference this many refinements beyond the finest level (0: none)", o.referenceRefine, 0, PETSC_MAX_INT));
+  PetscCall(OptionEList(PetscOptionsObject, "-reference_space", "Element of the reference solution", {"p1", "cr"}, ref));
+  PetscCall(OptionString(PetscOptionsObject, "-study_spaces", "Elements studied, comma separated", elements));
+  PetscCall(OptionString(PetscOptionsObject, "-study_output", "Write the study table as JSON to this file", o.file));
+  PetscCall(OptionString(PetscOptionsObject, "-study_profiles", "On the finest level write PREFIX-<element>.h5 and PREFIX-<element>-contact.csv", o.profiles));
   PetscOptionsEnd();
   o.referenceElement = (Element)ref;
-  o.file             = file;
-  o.profiles         = profiles;
   o.elements.clear();
   std::stringstream ss(elements);
   for (std::string item; std::getline(ss, item, ',');) {
@@ -32,8 +30,6 @@ PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, StudyOptions &o)
     else if (item == "cr") o.elements.push_back(Element::CR);
     else SIGNORINI_INPUT_ERROR(comm, "option -study_spaces: unknown element '%s' (p1 or cr)", item.c_str());
   }
-  if (o.levels < 0) SIGNORINI_INPUT_ERROR(comm, "option -study_levels: must be >= 0, got %" PetscInt_FMT, o.levels);
-  if (o.referenceRefine < 0) SIGNORINI_INPUT_ERROR(comm, "option -reference_refine: must be >= 0, got %" PetscInt_FMT, o.referenceRefine);
   if (!o.file.empty()) PetscCall(CheckWritable(comm, "-study_output", o.file));
   if (!o.profiles.empty()) PetscCall(CheckWritable(comm, "-study_profiles", o.profiles + "-" + ElementName(o.elements.front()) + ".h5"));
   PetscFunctionReturn(0);

@@ -3,6 +3,7 @@
 
 #include <petsc.h>
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -25,8 +26,19 @@ PetscErrorCode CheckAll(MPI_Comm comm, bool ok, const std::string &message);
 // and removing FILE.tmp on rank 0; an expensive solve should not end in "cannot write the output".
 PetscErrorCode CheckWritable(MPI_Comm comm, const std::string &option, const std::string &file);
 
-// Parse a comma-separated list of integers ("1,3,4"); empty string gives an empty list.
-PetscErrorCode ParseIntList(MPI_Comm comm, const std::string &option, const std::string &text, std::vector<PetscInt> &values);
+// `text` without the blanks (spaces, tabs) around it.
+std::string Trim(const std::string &text);
+// The integer `text` (named by `option` in the message) in [min, max]: returns "" and sets `value`, or
+// returns the message of an input error naming the option and the value (not an integer, or out of range,
+// also beyond the range of PetscInt). Surrounding blanks are allowed.
+std::string ReadInt(const std::string &option, const std::string &text, PetscInt min, PetscInt max, PetscInt &value);
+// Calls `item` on each entry of the comma-separated list `text` (blank text: none) until one returns an
+// error message, which is returned; an empty entry ("1,,2") is an error too.
+std::string ReadList(const std::string &option, const std::string &text, const std::function<std::string(const std::string &)> &item);
+// ReadInt for each entry of a comma-separated list ("1,3,4"; blank text gives an empty list).
+std::string ReadIntList(const std::string &option, const std::string &text, PetscInt min, PetscInt max, std::vector<PetscInt> &values);
+// ReadIntList raising the message as an input error.
+PetscErrorCode ParseIntList(MPI_Comm comm, const std::string &option, const std::string &text, std::vector<PetscInt> &values, PetscInt min = PETSC_MIN_INT, PetscInt max = PETSC_MAX_INT);
 
 // Collective: the ownership ranges of a distributed index set, ranges[p] .. ranges[p + 1] on rank p, from
 // each rank's count of owned indices.

@@ -16,8 +16,12 @@ namespace signorini {
 
 class Expression {
 public:
+  // Where an expression is evaluated: in a cell, whose "Cell Sets" value is the variable cell_set (every
+  // evaluation site calls SetCellSet), or at points of the boundary, which may touch cells of several sets,
+  // where the use of cell_set is an input error.
+  enum class At { Cell, Point };
   // `option` names the input in error messages (e.g. "-f"); `components` is 1 for a scalar and dim for a gradient.
-  static PetscErrorCode Create(MPI_Comm comm, const std::string &option, const std::string &text, int components, std::unique_ptr<Expression> &expr);
+  static PetscErrorCode Create(MPI_Comm comm, const std::string &option, const std::string &text, int components, std::unique_ptr<Expression> &expr, At at = At::Cell);
   ~Expression();
   Expression(const Expression &)            = delete;
   Expression &operator=(const Expression &) = delete;
@@ -27,7 +31,7 @@ public:
   // `error` into a collective input error after their loop (see CheckAll).
   bool      Eval(const PetscReal x[], PetscInt dim, PetscReal values[], std::string &error) const;
   PetscReal Scalar(const PetscReal x[], PetscInt dim, std::string &error) const;
-  // Value of the variable cell_set (the "Cell Sets" label of the cell being integrated; -1 if none).
+  // Value of the variable cell_set (the "Cell Sets" value of the cell being integrated; -1 if none).
   void               SetCellSet(PetscInt v) const { cellSet_ = (double)v; }
   const std::string &Text() const { return text_; }
   const std::string &Option() const { return option_; }

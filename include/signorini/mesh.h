@@ -28,7 +28,10 @@ struct MeshOptions {
   PetscReal   lower[3]   = {0, 0, 0};
   PetscReal   upper[3]   = {1, 1, 1};
   Diagonal    diagonal   = Diagonal::Slash;
-  PetscInt    refine     = 0;       // uniform parallel refinements after distribution
+  PetscInt    refine     = 0;       // uniform parallel refinements after distribution (coarsened included)
+  bool        coarsen    = true;    // -box_coarsen: build the box through a coarser box (see CoarsenBox)
+  PetscInt    coarsened  = 0;       // how many of the refinements make the box asked for from `faces`
+  bool        memoryCheck = true;   // -memory_check: refuse a run predicted not to fit (see sizes.h)
   std::string partitioner = "metis"; // "metis" or any PetscPartitioner type (ptscotch, simple, ...)
   Refinement  refinement = Refinement::Direct;
 };
@@ -42,7 +45,19 @@ struct MeshInfo {
   std::string           description;     // e.g. "box 64x64 backslash" or the file name
 };
 
+struct MeshCounts; // sizes.h
+
+// Reads the options and applies CoarsenBox for the ranks of `comm`.
 PetscErrorCode MeshOptionsFromCommandLine(MPI_Comm comm, MeshOptions &opts);
+// The fast path of -box_faces: a box (slash, backslash or 3D Kuhn cells) with N = n 2^k cells in every
+// direction is the box n refined k times (tests/unit_fastpath.cpp), and refining in parallel is far
+// cheaper than building the box on rank 0, and gives nested iteration its levels. Replaces `faces` by the
+// coarsest such n that still gives each of `ranks` ranks kMinCoarseCellsPerRank cells, adds k to `refine`
+// and sets `coarsened` = k. Crossed squares are not the refinement of coarser crossed squares: that box is
+// built as asked, as is every box with `coarsen` false.
+void CoarsenBox(MeshOptions &opts, PetscMPIInt ranks);
+// The box as asked, e.g. "box 512x512" (`faces` refined `coarsened` times).
+std::string BoxName(const MeshOptions &opts);
 // The d + 1 vertices of a simplex mesh point p of depth d (1: edge, 2: triangle, 3: tetrahedron), found by
 // descending cones: the vertices of the first cone point, then the one vertex of the second that is not
 // among them. Every table that lists a cell's vertices uses this order. Much cheaper than a transitive
@@ -74,6 +89,9 @@ PetscErrorCode MeshLevelsDestroy(MeshLevels &levels);
 // With `levels`, also keeps the coarser levels (at most `keep` below the fine mesh; -1: all of them) and
 // their parent maps instead of dropping them. `checkCoarse`, if given, is called with the distributed
 // coarse mesh before the refinement: input errors found there cost seconds, not the refinement's minutes.
-PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &opts, DM *dm, MeshInfo &info, MeshLevels *levels = nullptr, PetscInt keep = -1, const std::function<PetscErrorCode(DM)> &checkCoarse = nullptr);
+// `checkSizes`, if given, is called with the counts of the coarse mesh as soon as they are known (a box:
+// before it is built; a file: once read, before it is distributed), see CheckSizes in sizes.h.
+PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &opts, DM *dm, MeshInfo &info, MeshLevels *levels = nullptr, PetscInt keep = -1, const std::function<PetscErrorCode(DM)> &checkCoarse = nullptr,
+                          const std::function<PetscErrorCode(const MeshCounts &)> &checkSizes = nullptr);
 
 } // namespace signorini

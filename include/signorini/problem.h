@@ -13,7 +13,7 @@ namespace signorini {
 struct Problem {
   std::string           scene = "custom";
   std::vector<PetscInt> dirichlet, neumann, contact; // "Face Sets" values of Gamma_D, Gamma_N, Gamma_C
-  std::unique_ptr<Expression> f, g, uD, psi, kappa; // kappa may use the variable cell_set ("Cell Sets" value, -1 if none)
+  std::unique_ptr<Expression> f, g, uD, psi, kappa; // all but uD and psi may use cell_set ("Cell Sets" value, -1 if none)
   std::unique_ptr<Expression> exact, exactGrad;     // null when the scene has no exact solution
   std::string                 exactGradText;
   bool HasContact() const { return !contact.empty(); }
