@@ -83,9 +83,10 @@ PetscErrorCode BuildAmg(PC pc, Reuse &r, Mat P, const PetscInt *cur, PetscInt n)
   PetscCall(PCCreate(PetscObjectComm((PetscObject)pc), &r.amg));
   PetscCall(PCGetOptionsPrefix(pc, &prefix));
   PetscCall(PCSetOptionsPrefix(r.amg, prefix));
-  PetscCall(PCSetType(r.amg, r.innerType.c_str()));
+  // an unknown -vi_pc_type or -pc_ option is found here, inside the solve, but on all ranks alike
+  PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)pc), PCSetType(r.amg, r.innerType.c_str())));
   if (r.innerType == PCHYPRE) PetscCall(PCHYPRESetType(r.amg, "boomeramg"));
-  PetscCall(PCSetFromOptions(r.amg));
+  PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)pc), PCSetFromOptions(r.amg)));
   // A block of AmgReuseJacobian holds no entries: only a new set-up copies it, into hypre's format.
   PetscCall(PetscObjectTypeCompare((PetscObject)P, MATSHELL, &lazy));
   if (lazy) PetscCall(BlockToHypre(P, &H));

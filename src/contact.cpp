@@ -138,7 +138,7 @@ static PetscErrorCode SolveLinear(const System &sys, Vec u, SolveResult &r)
   PetscCall(KSPCreate(PetscObjectComm((PetscObject)u), &ksp));
   PetscCall(KSPSetOperators(ksp, sys.A, sys.A));
   PetscCall(ConfigureKSP(ksp));
-  PetscCall(KSPSetFromOptions(ksp));
+  PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)ksp), KSPSetFromOptions(ksp)));
   PetscCall(KSPSolve(ksp, sys.b, u));
   PetscCall(KSPGetConvergedReason(ksp, &reason));
   PetscCall(KSPGetIterationNumber(ksp, &r.kspIts));
@@ -254,7 +254,12 @@ static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &
   AmgReuseOptions reuse = opts.amgReuse;
   reuse.goodStart       = opts.initialGuess;
   PetscCall(AmgReuseInstall(snes, reuse, &r.amg));
-  PetscCall(SNESSetFromOptions(snes));
+  PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)snes), SNESSetFromOptions(snes)));
+  SNESType  type; // the bounds u >= psi need a VI solver; PETSc would refuse another one only inside SNESSolve
+  PetscBool vi;
+  PetscCall(SNESGetType(snes, &type));
+  PetscCall(PetscObjectTypeCompareAny((PetscObject)snes, &vi, SNESVINEWTONRSLS, SNESVINEWTONSSLS, ""));
+  if (!vi) SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)snes), "option -snes_type %s: the contact problem needs a solver for bounds: vinewtonrsls (the default) or vinewtonssls", type);
   PetscCall(AdaptToSNESType(snes, sys, ctx, &J));
   PetscReal atol, rtol, stol;
   PetscInt  maxit, maxf;
@@ -436,7 +441,7 @@ PetscErrorCode SolverOptionsHelp(MPI_Comm comm)
   PetscCall(SNESSetType(snes, SNESVINEWTONRSLS));
   PetscCall(SNESGetKSP(snes, &ksp));
   PetscCall(ConfigureKSP(ksp));
-  PetscCall(SNESSetFromOptions(snes));
+  PetscCall(OptionsAsInputError(comm, SNESSetFromOptions(snes)));
   PetscCall(SNESDestroy(&snes));
   PetscFunctionReturn(0);
 }

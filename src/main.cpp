@@ -19,6 +19,7 @@ static const char help[] =
 #include "signorini/sizes.h"
 #include "signorini/space.h"
 #include "signorini/stages.h"
+#include "signorini/startup.h"
 #include "signorini/study.h"
 
 #include <cstdio>
@@ -189,6 +190,7 @@ static PetscErrorCode WarnUnusedOptions(MPI_Comm comm)
 
 int main(int argc, char **argv)
 {
+  if (StartMPI(&argc, &argv, "signorini")) return 1; // a missing options file, in one line
   PetscErrorCode ierr = PetscInitialize(&argc, &argv, NULL, help);
   if (ierr) return ierr;
   // Input errors get one line; -error_traceback restores PETSc's full traceback for debugging.
@@ -200,5 +202,6 @@ int main(int argc, char **argv)
   const int status = ExitStatus(PETSC_COMM_WORLD, ierr, "signorini");
   if (!traceback) PetscPopErrorHandler(); // -malloc_dump would list the pushed handler as a leak
   PetscFinalize();
+  MPI_Finalize(); // StartMPI began MPI, so PetscFinalize leaves it running
   return status;
 }

@@ -1,4 +1,5 @@
 #include "signorini/mesh.h"
+#include "signorini/gmsh.h"
 #include "signorini/options.h"
 #include "signorini/refine.h"
 #include "signorini/sizes.h"
@@ -337,8 +338,9 @@ static std::string CheckCoarseMesh(DM dm, const std::string &name)
   return CheckNoFolds(dm, name);
 }
 
-// Reads a Gmsh file. Rank 0 first reads it alone to check it, so that a missing, truncated or non-mesh
-// file gives one clear message on every rank instead of an error on rank 0 while the others wait.
+// Reads a Gmsh file. Rank 0 first checks the file and reads it alone to check the mesh, so that a missing,
+// truncated, malformed or non-mesh file gives one clear message on every rank instead of an error on rank 0
+// while the others wait.
 static PetscErrorCode CreateFromGmsh(MPI_Comm comm, const MeshOptions &o, DM *dm, std::string &description)
 {
   PetscMPIInt rank;
@@ -347,14 +349,8 @@ static PetscErrorCode CreateFromGmsh(MPI_Comm comm, const MeshOptions &o, DM *dm
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_rank(comm, &rank));
   if (rank == 0) {
-    FILE *fp = std::fopen(o.file.c_str(), "r");
-    char  line[64] = "";
-    if (!fp) problem = name + ": cannot open it for reading";
-    else {
-      if (!std::fgets(line, sizeof line, fp)) problem = name + (std::ferror(fp) ? ": cannot be read (is it a directory?)" : ": the file is empty");
-      else if (std::strncmp(line, "$MeshFormat", 11) != 0) problem = name + ": not a Gmsh mesh (no $MeshFormat header)";
-      std::fclose(fp);
-    }
+    GmshNodes nodes;
+    problem = GmshCheckFile(o.file, name, nodes);
     if (problem.empty()) {
       // read all three coordinates, so that CheckCoarseMesh can see whether a 2D mesh is flat
       DM        test = nullptr;
@@ -362,10 +358,18 @@ static PetscErrorCode CreateFromGmsh(MPI_Comm comm, const MeshOptions &o, DM *dm
       PetscCall(PetscOptionsHasName(NULL, NULL, "-dm_plex_gmsh_spacedim", &userSpaceDim));
       if (!userSpaceDim) PetscCall(PetscOptionsSetValue(NULL, "-dm_plex_gmsh_spacedim", "3"));
       PetscErrorCode ierr = DMPlexCreateGmshFromFile(PETSC_COMM_SELF, o.file.c_str(), PETSC_TRUE, &test);
+      if (ierr) {
+        // PETSc's reason is the first error; destroying the half-built mesh may raise another one (such as
+        // "Work array still checked out"), which must neither hide it nor end the run.
+        problem = name + ": cannot be read as a Gmsh mesh: " + LastPetscError(ierr);
+        if (test) (void)DMDestroy(&test);
+      }
       if (!userSpaceDim) PetscCall(PetscOptionsClearValue(NULL, "-dm_plex_gmsh_spacedim"));
-      if (ierr) problem = name + ": cannot be read as a Gmsh mesh: " + LastPetscError(ierr);
-      else problem = CheckCoarseMesh(test, name);
-      if (test) PetscCall(DMDestroy(&test));
+      if (!ierr) {
+        problem = CheckCoincidentVertices(test, name, nodes);
+        if (problem.empty()) problem = CheckCoarseMesh(test, name);
+        PetscCall(DMDestroy(&test));
+      }
     }
   }
   PetscCall(CheckAll(comm, problem.empty(), problem));
@@ -415,6 +419,32 @@ static PetscErrorCode PartitionWithMetis(DM dm, PetscInt &edgeCut)
   PetscCall(ISDestroy(&globalNumbering));
   PetscInt cut = (PetscInt)objval;
   PetscCallMPI(MPI_Allreduce(&cut, &edgeCut, 1, MPIU_INT, MPI_MAX, comm));
+  PetscFunctionReturn(0);
+}
+
+// -mesh_partitioner names metis (PartitionWithMetis) or a registered PetscPartitioner type, less the shell
+// (which needs a partition made in code) and those whose external package this PETSc lacks: checked before
+// the mesh is built, since PETSc finds a wrong name only when it distributes the mesh.
+static PetscErrorCode CheckPartitioner(MPI_Comm comm, const std::string &partitioner)
+{
+  const char **types;
+  int          n;
+  std::string  valid = "metis";
+  bool         found = partitioner == "metis";
+  PetscFunctionBeginUser;
+  PetscCall(PetscPartitionerInitializePackage());
+  PetscCall(PetscFunctionListGet(PetscPartitionerList, &types, &n));
+  for (int i = 0; i < n && types[i]; ++i) {
+    const std::string type = types[i];
+    PetscBool         have = PETSC_TRUE;
+    if (type == PETSCPARTITIONERSHELL) continue;
+    if (type == PETSCPARTITIONERPARMETIS || type == PETSCPARTITIONERPTSCOTCH || type == PETSCPARTITIONERCHACO) PetscCall(PetscHasExternalPackage(types[i], &have));
+    if (!have) continue;
+    valid += ", " + type;
+    found = found || partitioner == type;
+  }
+  PetscCall(PetscFree(types));
+  if (!found) SIGNORINI_INPUT_ERROR(comm, "option -mesh_partitioner: '%s' is not an available partitioner (valid: %s)", partitioner.c_str(), valid.c_str());
   PetscFunctionReturn(0);
 }
 
@@ -518,6 +548,7 @@ PetscErrorCode MeshCreate(MPI_Comm comm, const MeshOptions &o, DM *dm, MeshInfo 
   PetscInt    cStart, cEnd;
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_size(comm, &size));
+  PetscCall(CheckPartitioner(comm, o.partitioner));
 
   PetscCall(StagePush(Stage::Mesh));
   if (o.file.empty()) {

@@ -1,7 +1,8 @@
 """Bad input: every case exits with status 1 (not 2, not a hang), prints exactly one line
 "signorini: error: ..." on stderr that names the offending option or file, and leaves neither a summary
 nor any output file (.h5, .xmf, *.tmp) behind. Mesh-file, boundary-label and kappa cases, whose failure
-can be found on one rank only, also run on 2 ranks."""
+can be found on one rank only, also run on 2 ranks, and so do the options files and the solver options, which
+PETSc reads on rank 0 or on all ranks at once."""
 import os
 import subprocess
 import tempfile
@@ -11,31 +12,81 @@ from harness import ROOT, Checker, scene
 
 
 
-def write_gmsh(path, nodes, elements):
-    """Gmsh 2.2 ASCII file: nodes {id: (x, y, z)}, elements [(gmsh type, physical tag, node ids)]."""
+def write_gmsh(path, nodes, elements, version="2.2"):
+    """Gmsh ASCII file: nodes {id: (x, y, z)}, elements [(gmsh type, physical tag, node ids)]. Version 4.1
+    puts the elements of each (dimension, physical tag) in an entity of that tag, and all nodes in one block."""
     with open(path, "w") as f:
-        f.write("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n%d\n" % len(nodes))
-        for k, p in nodes.items():
-            f.write("%d %r %r %r\n" % ((k,) + tuple(p)))
-        f.write("$EndNodes\n$Elements\n%d\n" % len(elements))
-        for i, (kind, tag, ids) in enumerate(elements):
-            f.write("%d %d 2 %d %d %s\n" % (i + 1, kind, tag, tag, " ".join(map(str, ids))))
+        f.write("$MeshFormat\n%s 0 8\n$EndMeshFormat\n" % version)
+        if version == "2.2":
+            f.write("$Nodes\n%d\n" % len(nodes))
+            for k, p in nodes.items():
+                f.write("%d %r %r %r\n" % ((k,) + tuple(p)))
+            f.write("$EndNodes\n$Elements\n%d\n" % len(elements))
+            for i, (kind, tag, ids) in enumerate(elements):
+                f.write("%d %d 2 %d %d %s\n" % (i + 1, kind, tag, tag, " ".join(map(str, ids))))
+            f.write("$EndElements\n")
+            return
+        dims = {15: 0, 1: 1, 2: 2, 4: 3, 8: 1, 9: 2}
+        blocks = {}
+        for kind, tag, ids in elements:
+            blocks.setdefault((dims[kind], tag, kind), []).append(ids)
+        entities = [sorted({(d, t) for d, t, _ in blocks if d == dim}) for dim in range(4)]
+        f.write("$Entities\n%s\n" % " ".join(str(len(e)) for e in entities))
+        for dim, es in enumerate(entities):
+            for _, t in es:
+                f.write("%d %s 1 %d%s\n" % (t, " ".join(["0"] * (3 if dim == 0 else 6)), t, "" if dim == 0 else " 0"))
+        f.write("$EndEntities\n$Nodes\n1 %d %d %d\n2 10 0 %d\n" % (len(nodes), min(nodes), max(nodes), len(nodes)))
+        f.write("".join("%d\n" % k for k in nodes) + "".join("%r %r %r\n" % tuple(p) for p in nodes.values()))
+        f.write("$EndNodes\n$Elements\n%d %d 1 %d\n" % (len(blocks), len(elements), len(elements)))
+        number = 0
+        for (dim, tag, kind), members in blocks.items():
+            f.write("%d %d %d %d\n" % (dim, tag, kind, len(members)))
+            for ids in members:
+                number += 1
+                f.write("%d %s\n" % (number, " ".join(map(str, ids))))
         f.write("$EndElements\n")
 
 
-def unit_square(path, center=(0.5, 0.5, 0.0), z=lambda x, y: 0.0, extra_lines=(), triangles=True):
+def unit_square(path, center=(0.5, 0.5, 0.0), z=lambda x, y: 0.0, extra_lines=(), triangles=True, edit=None, extra_nodes=None, extra_elements=(), version="2.2"):
     """The unit square as a 3x3 grid of nodes (node 5 at `center`), 8 triangles (physical surface 10),
-    sides labelled 1 bottom, 2 right, 3 top, 4 left, plus (tag, (a, b)) extra labelled lines."""
+    sides labelled 1 bottom, 2 right, 3 top, 4 left, plus (tag, (a, b)) extra labelled lines. `edit` changes
+    the list of triangles (node triples); extra nodes {id: (x, y, z)} and elements (gmsh type, tag, ids)
+    are added as given."""
     nodes = {1 + i + 3 * j: (0.5 * i, 0.5 * j, z(0.5 * i, 0.5 * j)) for j in range(3) for i in range(3)}
     nodes[5] = center
+    nodes.update(extra_nodes or {})
     lines = {1: [(1, 2), (2, 3)], 2: [(3, 6), (6, 9)], 3: [(9, 8), (8, 7)], 4: [(7, 4), (4, 1)]}
     elements = [(1, tag, l) for tag, ls in lines.items() for l in ls] + [(1, tag, l) for tag, l in extra_lines]
     if triangles:
+        tris = []
         for j in range(2):
             for i in range(2):
                 a = 1 + i + 3 * j
-                elements += [(2, 10, (a, a + 1, a + 4)), (2, 10, (a, a + 4, a + 3))]
+                tris += [(a, a + 1, a + 4), (a, a + 4, a + 3)]
+        elements += [(2, 10, t) for t in (edit(tris) if edit else tris)]
+    write_gmsh(path, nodes, elements + list(extra_elements), version)
+    return nodes, elements
+
+
+def second_order(path):
+    """The square of unit_square with 3-node lines and 6-node triangles (Gmsh types 8 and 9): a node in the
+    middle of every edge, numbered 100 + 10 a + b for the edge (a, b), a < b."""
+    corners, first = unit_square(path)
+    nodes, elements = dict(corners), []
+    for kind, tag, ids in first:
+        edges = list(zip(ids, ids[1:] + ids[:1])) if kind == 2 else [tuple(ids)]
+        middle = [100 + 10 * min(a, b) + max(a, b) for a, b in edges]
+        for (a, b), m in zip(edges, middle):
+            nodes[m] = tuple((p + q) / 2 for p, q in zip(corners[a], corners[b]))
+        elements.append((9 if kind == 2 else 8, tag, tuple(ids) + tuple(middle)))
     write_gmsh(path, nodes, elements)
+
+
+def msh1(path):
+    """The unit square in Gmsh's format version 1 ($NOD / $ELM sections), which PETSc does not read."""
+    with open(path, "w") as f:
+        f.write("$NOD\n4\n1 0 0 0\n2 1 0 0\n3 1 1 0\n4 0 1 0\n$ENDNOD\n")
+        f.write("$ELM\n2\n1 2 10 10 3 1 2 3\n2 2 10 10 3 1 3 4\n$ENDELM\n")
 
 
 c = Checker()
@@ -59,11 +110,23 @@ with tempfile.TemporaryDirectory() as inputs:
     nodir = os.path.join(inputs, "no-such-directory", "out.h5")
     folded, flat, lines, surface, quads, overlap = (os.path.join(inputs, n + ".msh") for n in ("folded", "flat", "lines", "surface", "quads", "overlap"))
     unit_square(folded, center=(1.2, 0.5, 0.0))  # node 5 moved across the right side: cells overlap
-    unit_square(flat, center=(1.0, 0.5, 0.0))  # node 5 on the right side: two cells of zero area
+    unit_square(flat, center=(1.0, 0.25, 0.0))  # node 5 on the right side: a cell of zero area
     unit_square(lines, triangles=False)  # boundary lines only: no 2D cells
     unit_square(surface, z=lambda x, y: x * y)  # a curved surface in 3D, not a planar mesh
     write_gmsh(quads, {1: (0, 0, 0), 2: (1, 0, 0), 3: (1, 1, 0), 4: (0, 1, 0)}, [(1, 1, (1, 2)), (3, 10, (1, 2, 3, 4))])
     unit_square(overlap, extra_lines=[(5, (1, 2))])  # one bottom line also in physical group 5
+    # Gmsh files that PETSc reads into a wrong mesh, or fails on with a misleading message
+    duplicate, dangling, repeated, mixed, order2, version1 = (os.path.join(inputs, n + ".msh") for n in ("duplicate", "dangling", "repeated", "mixed", "order2", "version1"))
+    # node 10 is node 5 again, used by the upper four triangles: read as it is, the mesh has a crack
+    duplicate41 = os.path.join(inputs, "duplicate41.msh")  # the same in msh 4.1
+    for path, version in (duplicate, "2.2"), (duplicate41, "4.1"):
+        unit_square(path, version=version, extra_nodes={10: (0.5, 0.5, 0.0)}, edit=lambda ts: ts[:4] + [tuple(10 if v == 5 else v for v in t) for t in ts[4:]])
+    unit_square(dangling, edit=lambda ts: [(1, 2, 42)] + ts[1:])  # there is no node 42
+    unit_square(repeated, edit=lambda ts: [(1, 1, 5)] + ts[1:])
+    unit_square(mixed, extra_nodes={10: (0.5, 0.5, 1.0)}, extra_elements=[(4, 20, (1, 2, 4, 10))])  # one tetrahedron
+    second_order(order2)
+    msh1(version1)
+    missing_options = os.path.join(inputs, "no-such-options-file")
     isdir = os.path.join(inputs, "a-directory.h5")
     os.mkdir(isdir)
     notdir = os.path.join(square, "summary.json")  # a path below a regular file
@@ -113,6 +176,21 @@ with tempfile.TemporaryDirectory() as inputs:
         # option errors come before the mesh file is even read
         ("singular, and a missing mesh file", ["-bc_dirichlet", "", "-bc_contact", "", "-mesh_file", missing], "singular", False),
         ("bad expression, and a missing mesh file", ["-f", "2*sin(", "-mesh_file", missing], "option -f:", False),
+        # the mesh is what the file says, or the real reason why not
+        ("duplicated node", ["-mesh_file", duplicate] + square_scene, "nodes 5 and 10 are at the same point", True),
+        ("duplicated node, msh 4.1", ["-mesh_file", duplicate41] + square_scene, "nodes 5 and 10 are at the same point", True),
+        ("dangling node reference", ["-mesh_file", dangling] + square_scene, "refers to node 42, which is not in $Nodes", True),
+        ("a triangle (a, a, b)", ["-mesh_file", repeated] + square_scene, "element 9 (a triangle) lists node 1 twice", True),
+        ("triangles and a tetrahedron", ["-mesh_file", mixed] + square_scene, "is not a face of any tetrahedron", True),
+        ("second-order elements", ["-mesh_file", order2] + square_scene, "of order 2", True),
+        ("msh version 1", ["-mesh_file", version1] + square_scene, "version 1", True),
+        # errors while PETSc or its objects read the options
+        ("missing options file", ["-options_file", missing_options], "option -options_file: cannot open '%s'" % missing_options, True),
+        ("unknown partitioner", ["-mesh_partitioner", "bogus"], "option -mesh_partitioner: 'bogus' is not an available partitioner", True),
+        ("SNES type without bounds", ["-snes_type", "newtonls"], "vinewtonrsls", True),
+        ("unknown KSP type", ["-ksp_type", "bogus"], "KSP type bogus", True),
+        ("unknown PC type", ["-pc_type", "bogus"], "PC type bogus", True),
+        ("unknown PC type for the inactive-set blocks", ["-vi_pc_type", "bogus"], "PC type bogus", True),
     ]
 
     # Errors that need no fine mesh must stop the run before the refinement (which costs minutes at scale):
@@ -122,7 +200,9 @@ with tempfile.TemporaryDirectory() as inputs:
                          "negative refine", "dim 4", "unknown space", "same part named twice",
                          "no Dirichlet and no contact part (singular)", "exact gradient with 3 components in 2D",
                          "singular, and a missing mesh file", "bad expression, and a missing mesh file",
-                         "quadrilateral cells", "no cells of dimension 2 or 3", "curved surface mesh"}
+                         "quadrilateral cells", "no cells of dimension 2 or 3", "curved surface mesh",
+                         "duplicated node", "duplicated node, msh 4.1", "dangling node reference", "a triangle (a, a, b)", "triangles and a tetrahedron",
+                         "second-order elements", "msh version 1", "missing options file", "unknown partitioner"}
     c.check(before_refinement <= {case[0] for case in cases}, "every case named in before_refinement exists")
     for name, extra, names, parallel in cases:
         for ranks in [1, 2] if parallel else [1]:
