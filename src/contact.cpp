@@ -536,9 +536,11 @@ PetscErrorCode Solve(const Space &space, const Problem &problem, const System &s
     PetscCall(ContactLowerBound(space, problem, lower));
   }
   PetscCall(SpaceReleaseWorkVectors(space));
-  // The solvers see the data divided by the scale of u, a power of 2 (datascale.h): exact both ways.
-  PetscCall(DataScaleExponent(space, sys, lower, &r.scaleExponent));
-  PetscCall(ScaleData(sys, lower, opts.initialGuess ? u : nullptr, -r.scaleExponent));
+  // The solvers see u and the equations divided by their scales, powers of 2 (datascale.h): exact both ways.
+  DataScale scale;
+  PetscCall(DataScaleCompute(space, sys, lower, &scale));
+  PetscCall(ScaleData(sys, lower, opts.initialGuess ? u : nullptr, scale, false));
+  r.scaleExponent = scale.u;
   // Start inside K_h: from u_D, or from the guess with u_D on Gamma_D and u >= psi on Gamma_C.
   if (!opts.initialGuess) PetscCall(VecCopy(sys.uD, u));
   PetscCall(ProjectOntoConstraints(sys, space.dirichletOwned, lower, u));
@@ -547,9 +549,9 @@ PetscErrorCode Solve(const Space &space, const Problem &problem, const System &s
   PetscCall(SecondsSince(comm, t0, &r.solveSeconds));
   PetscCall(StagePop(Stage::Solve));
   if (opts.compareLinear) PetscCall(TimeLinearSolve(sys, r));
-  PetscCall(ScaleData(sys, lower, u, r.scaleExponent));
-  r.residual      = std::ldexp(r.residual, (int)r.scaleExponent);
-  r.defaultTarget = std::ldexp(r.defaultTarget, (int)r.scaleExponent);
+  PetscCall(ScaleData(sys, lower, u, scale, true));
+  r.residual      = scale.Residual(r.residual);
+  r.defaultTarget = scale.Residual(r.defaultTarget);
   PetscCall(AmgDefaultsRemoveUnused(amgDefaults));
   if (r.vi) { // only now: the solve's peak memory need not hold it
     PetscCall(VecDuplicate(u, &measure));

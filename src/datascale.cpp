@@ -48,10 +48,30 @@ PetscErrorCode LoadScaleLog2(const Space &space, const System &sys, PetscReal *l
 }
 } // namespace
 
-PetscErrorCode DataScaleExponent(const Space &space, const System &sys, Vec lower, PetscInt *exponent)
+namespace {
+// log2 of max A_ii over the rows that are not Dirichlet rows (the latter are rows of the identity).
+PetscErrorCode RowScaleLog2(const Space &space, const System &sys, PetscReal *log2R)
+{
+  Vec          d;
+  PetscScalar *a;
+  PetscReal    dmax;
+  PetscFunctionBeginUser;
+  PetscCall(VecDuplicate(sys.b, &d));
+  PetscCall(MatGetDiagonal(sys.A, d));
+  PetscCall(VecGetArray(d, &a));
+  for (PetscInt i : space.dirichletOwned) a[i] = 0;
+  PetscCall(VecRestoreArray(d, &a));
+  PetscCall(VecNorm(d, NORM_INFINITY, &dmax));
+  PetscCall(VecDestroy(&d));
+  *log2R = dmax > 0 && std::isfinite(dmax) ? std::log2(dmax) : 0;
+  PetscFunctionReturn(0);
+}
+} // namespace
+
+PetscErrorCode DataScaleCompute(const Space &space, const System &sys, Vec lower, DataScale *scale)
 {
   MPI_Comm           comm = PetscObjectComm((PetscObject)sys.b);
-  PetscReal          uDmax, psimax = 0, log2U = -PETSC_INFINITY;
+  PetscReal          uDmax, psimax = 0, log2U = -PETSC_INFINITY, log2R = 0;
   const PetscScalar *la;
   PetscFunctionBeginUser;
   PetscCall(VecNorm(sys.uD, NORM_INFINITY, &uDmax));
@@ -65,23 +85,25 @@ PetscErrorCode DataScaleExponent(const Space &space, const System &sys, Vec lowe
   PetscCall(LoadScaleLog2(space, sys, &log2U));
   for (PetscReal m : {uDmax, psimax})
     if (m > 0) log2U = std::max(log2U, std::log2(m));
-  *exponent = 0;
-  if (log2U == -PETSC_INFINITY) PetscFunctionReturn(0); // no data: u = 0
-  *exponent = (PetscInt)std::lround(log2U);
-  if (std::abs(*exponent) > kMaxScaleExponent) {
-    const bool large = *exponent > 0;
-    SIGNORINI_INPUT_ERROR(comm, "the data are too %s for double precision: the solution would be about 1e%+.0f, and its energy (about the square) %s; %s f, g, u_D and psi by a power of ten and %s the solution by it", large ? "large" : "small", (double)(log2U * std::log10(2.0)), large ? "overflows" : "underflows", large ? "divide" : "multiply", large ? "multiply" : "divide");
+  PetscCall(RowScaleLog2(space, sys, &log2R));
+  scale->rows = (PetscInt)std::lround(log2R);
+  scale->u    = log2U == -PETSC_INFINITY ? 0 : (PetscInt)std::lround(log2U); // no data: u = 0
+  if (std::abs(scale->u) > kMaxScaleExponent) {
+    const bool large = scale->u > 0;
+    SIGNORINI_INPUT_ERROR(comm, "the data are too %s for double precision: the solution would be about 1e%+.0f, and its energy (about the square) %s; %s f, g, u_D and psi (or %s kappa) by a power of ten and %s the solution by it", large ? "large" : "small", (double)(log2U * std::log10(2.0)), large ? "overflows" : "underflows", large ? "divide" : "multiply", large ? "multiply" : "divide", large ? "multiply" : "divide");
   }
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ScaleData(const System &sys, Vec lower, Vec u, PetscInt exponent)
+PetscErrorCode ScaleData(const System &sys, Vec lower, Vec u, const DataScale &scale, bool back)
 {
-  const PetscReal factor = std::ldexp(1.0, (int)exponent);
+  const int sign = back ? 1 : -1;
   PetscFunctionBeginUser;
-  if (exponent == 0) PetscFunctionReturn(0);
-  for (Vec v : {sys.b, sys.uD, lower, u})
-    if (v) PetscCall(VecScale(v, factor)); // -infinity (no bound) stays -infinity
+  if (scale.rows != 0) PetscCall(MatScale(sys.A, std::ldexp(1.0, sign * (int)scale.rows)));
+  if (scale.u + scale.rows != 0) PetscCall(VecScale(sys.b, std::ldexp(1.0, sign * (int)(scale.u + scale.rows))));
+  if (scale.u == 0) PetscFunctionReturn(0);
+  for (Vec v : {sys.uD, lower, u})
+    if (v) PetscCall(VecScale(v, std::ldexp(1.0, sign * (int)scale.u))); // -infinity (no bound) stays -infinity
   PetscFunctionReturn(0);
 }
 

@@ -3,7 +3,8 @@ cone, so the solution for the load s f is s u(f) and its energy J(s f) = s^2 J(f
 divided by a power of 2 near the size of u, so that PETSc's absolute thresholds follow the data: every s must give
 the same Newton and KSP iterations (on every nested level) and the same active set. Checked for s = 1e-60 ... 1e60
 with P1 and CR: with contact and nested iteration (-refine 2, the default path), with contact without it, and
-without contact (one linear solve); on 1 rank and, for P1 with nested iteration, on 2 ranks. Data whose solution
+without contact (one linear solve); on 1 rank and, for P1 with nested iteration, on 2 ranks. Scaling kappa
+instead divides u and J by the factor, again with the same iterations. Data whose solution
 double precision cannot hold (its energy would under- or overflow) stop with one error line and write no summary."""
 import os
 import tempfile
@@ -56,6 +57,14 @@ for space in ["p1", "cr"]:
     compare("paper-5.1 %s -refine 2 -nested 0" % space, paper + ["-space", space, "-refine", "2", "-nested", "0"])
     compare("paper-5.1 %s without contact" % space, paper + ["-space", space, "-refine", "1", "-bc_contact", "", "-bc_neumann", "1,2,4"], contact=False)
 compare("paper-5.1 p1 nested -refine 2, 2 ranks", paper + ["-space", "p1", "-refine", "2"], ranks=2)
+
+# kappa scaled by 1e-60 and 1e60 (the equations' scale follows the matrix): u(kappa) = u(1) / kappa, J likewise.
+runs = {k: run(paper + ["-space", "cr", "-refine", "1", "-kappa", k])[3] for k in ["1e-60", "1", "1e60"]}
+for k, summary in runs.items():
+    base, f = runs["1"], float(k)
+    label = "paper-5.1 cr nested -refine 1 kappa=%s" % k
+    c.check(iterations(summary) == iterations(base), "%s: iterations %s = %s at kappa = 1" % (label, iterations(summary), iterations(base)))
+    c.check(abs(summary["energy"] * f - base["energy"]) <= TOL * abs(base["energy"]), "%s: kappa J = %.15e, J(kappa = 1) = %.15e" % (label, summary["energy"] * f, base["energy"]))
 
 # Out of range: one error line, exit status 1, no summary file.
 for s, word in [("1e-300", "too small"), ("1e300", "too large")]:

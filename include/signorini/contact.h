@@ -37,7 +37,7 @@ struct SolveResult {
   PetscReal   residual = 0, defaultTarget = 0; // the residual reached, and the default test's (units of b)
   PetscReal   kktReached = 0, kktDefault = 0;
   std::string loosened; // the stopping options the user set looser than the defaults ("-snes_rtol 0.001")
-  PetscInt    scaleExponent = 0; // the solve worked on the data divided by 2^scaleExponent (datascale.h)
+  PetscInt    scaleExponent = 0; // the solve worked on u / 2^scaleExponent (DataScale::u, datascale.h)
   PetscReal stationarity = 0; // max |r| over DOFs that are neither Dirichlet nor contact, relative to max |load|
   PetscReal energy = 0;
   // Nested iteration: one entry per level solved, coarsest first, the finest (this solve) last; empty
@@ -79,9 +79,9 @@ PetscErrorCode ProjectOntoConstraints(const System &sys, const std::vector<Petsc
 // from u_D (projected onto K_h); with it, from u with its Dirichlet DOFs set to u_D and its contact DOFs
 // projected onto u >= psi. Either way the solve stops at the same absolute residual, the one the
 // start from u_D would reach (its SNES rtol times its initial residual), so that a good initial guess
-// saves work without changing the discrete solution beyond solver tolerance. The solvers work on the data
-// divided by a power of 2 near the size of u (datascale.h), so the iterations do not depend on the size
-// of the data, and PETSc's absolute options (-snes_atol, -ksp_atol, -snes_vi_zero_tolerance,
+// saves work without changing the discrete solution beyond solver tolerance. The solvers work on u and on
+// the equations divided by powers of 2 near their sizes (datascale.h), so the iterations do not depend on
+// the size of the data, and PETSc's absolute options (-snes_atol, -ksp_atol, -snes_vi_zero_tolerance,
 // -snes_linesearch_maxstep) are relative to it. Pushes the Solve stage.
 PetscErrorCode Solve(const Space &space, const Problem &problem, const System &sys, Vec u, SolveResult &result, const SolveOptions &opts = SolveOptions());
 // For the output, global vectors of the space that are 0 off Gamma_C: psi, the contact pressure
