@@ -7,23 +7,31 @@
 namespace signorini {
 
 namespace {
+// Sets the Dirichlet rows of v to 0 (they are rows of the identity in A, u_D in b) and returns max |v_i|.
+PetscErrorCode ZeroDirichletRows(const Space &space, Vec v, PetscReal *vmax)
+{
+  PetscScalar *a;
+  PetscFunctionBeginUser;
+  PetscCall(VecGetArray(v, &a));
+  for (PetscInt i : space.dirichletOwned) a[i] = 0;
+  PetscCall(VecRestoreArray(v, &a));
+  PetscCall(VecNorm(v, NORM_INFINITY, vmax));
+  PetscFunctionReturn(0);
+}
+
 // log2 of |l|_inf (l.l) / (l.A l) for l = b off the Dirichlet rows: the size of A^-1 l if l were an
 // eigenvector, and of the right order for a smooth load (a rough one gives less, by at most the condition
 // number). l is first scaled by a power of 2 to |l|_inf in [1, 2), so that neither product under- or
 // overflows. -infinity when l = 0.
 PetscErrorCode LoadScaleLog2(const Space &space, const System &sys, PetscReal *log2U)
 {
-  MPI_Comm     comm = PetscObjectComm((PetscObject)sys.b);
-  Vec          l, Al;
-  PetscScalar *a;
-  PetscReal    lmax;
+  MPI_Comm  comm = PetscObjectComm((PetscObject)sys.b);
+  Vec       l, Al;
+  PetscReal lmax;
   PetscFunctionBeginUser;
   PetscCall(VecDuplicate(sys.b, &l));
   PetscCall(VecCopy(sys.b, l));
-  PetscCall(VecGetArray(l, &a));
-  for (PetscInt i : space.dirichletOwned) a[i] = 0;
-  PetscCall(VecRestoreArray(l, &a));
-  PetscCall(VecNorm(l, NORM_INFINITY, &lmax));
+  PetscCall(ZeroDirichletRows(space, l, &lmax));
   if (!std::isfinite(lmax)) {
     PetscCall(VecDestroy(&l));
     SIGNORINI_INPUT_ERROR(comm, "the load vector (the integrals of f and g) is not finite: the data overflow double precision; divide f, g, u_D and psi by a power of ten and multiply the solution by it");
@@ -46,22 +54,16 @@ PetscErrorCode LoadScaleLog2(const Space &space, const System &sys, PetscReal *l
   PetscCall(VecDestroy(&l));
   PetscFunctionReturn(0);
 }
-} // namespace
 
-namespace {
 // log2 of max A_ii over the rows that are not Dirichlet rows (the latter are rows of the identity).
 PetscErrorCode RowScaleLog2(const Space &space, const System &sys, PetscReal *log2R)
 {
-  Vec          d;
-  PetscScalar *a;
-  PetscReal    dmax;
+  Vec       d;
+  PetscReal dmax;
   PetscFunctionBeginUser;
   PetscCall(VecDuplicate(sys.b, &d));
   PetscCall(MatGetDiagonal(sys.A, d));
-  PetscCall(VecGetArray(d, &a));
-  for (PetscInt i : space.dirichletOwned) a[i] = 0;
-  PetscCall(VecRestoreArray(d, &a));
-  PetscCall(VecNorm(d, NORM_INFINITY, &dmax));
+  PetscCall(ZeroDirichletRows(space, d, &dmax));
   PetscCall(VecDestroy(&d));
   *log2R = dmax > 0 && std::isfinite(dmax) ? std::log2(dmax) : 0;
   PetscFunctionReturn(0);
