@@ -12,8 +12,9 @@
 namespace signorini {
 
 namespace {
-// The default stopping tolerances of the contact solve (and of the linear solves inside it).
-constexpr PetscReal kSnesRtol = 1e-9, kKspRtol = 1e-10;
+// The default stopping tolerances of the contact solve (and of the linear solves inside it), and PETSc
+// 3.18's default bound tolerance of SNESVI (a DOF within it of psi, with a positive residual, is active).
+constexpr PetscReal kSnesRtol = 1e-9, kKspRtol = 1e-10, kZeroTolerance = 1e-8;
 
 struct ResidualContext {
   Mat  A;
@@ -256,6 +257,9 @@ static PetscErrorCode LoosenedStoppingTest(SNES snes, PetscReal atol, PetscReal 
   if (rtol > kSnesRtol) l += Format(" -snes_rtol %g", (double)rtol);
   if (atol > r.defaultTarget) l += Format(" -snes_atol %g", (double)atol);
   if (kspRtol > kKspRtol) l += Format(" -ksp_rtol %g", (double)kspRtol);
+  PetscReal zeroTol = kZeroTolerance;
+  PetscCall(PetscOptionsGetReal(NULL, NULL, "-snes_vi_zero_tolerance", &zeroTol, NULL));
+  if (zeroTol > kZeroTolerance) l += Format(" -snes_vi_zero_tolerance %g", (double)zeroTol);
   if (!l.empty()) l.erase(0, 1);
   PetscFunctionReturn(0);
 }
@@ -397,11 +401,11 @@ static PetscErrorCode MeasureKKT(const Space &space, const System &sys, Vec u, V
   r.kktRelative = std::max({r.kktRelative, -r.dual / r.pressureMax, r.complementarity / (r.pressureMax * std::max(r.gapMax, scaleU))});
   // What a residual t permits (see SolveResult): |r_i| <= t at inactive contact DOFs, and a DOF SNESVI
   // counts as active may lie up to its bound tolerance (in the units the solve worked in) above psi.
-  PetscReal zeroTol = 1e-8; // PETSc 3.18's default
+  PetscReal zeroTol = kZeroTolerance;
   PetscCall(PetscOptionsGetReal(NULL, NULL, "-snes_vi_zero_tolerance", &zeroTol, NULL));
-  const PetscReal nearBound = std::ldexp(zeroTol, (int)r.scaleExponent) / std::max(r.gapMax, scaleU);
-  r.kktReached              = r.residual / (mins[2] * r.pressureMax) + nearBound;
-  r.kktDefault              = r.defaultTarget / (mins[2] * r.pressureMax) + nearBound;
+  const auto nearBound = [&](PetscReal tol) { return std::ldexp(tol, (int)r.scaleExponent) / std::max(r.gapMax, scaleU); };
+  r.kktReached = r.residual / (mins[2] * r.pressureMax) + nearBound(zeroTol);
+  r.kktDefault = r.defaultTarget / (mins[2] * r.pressureMax) + nearBound(kZeroTolerance);
   PetscFunctionReturn(0);
 }
 

@@ -1,7 +1,8 @@
 // The warning after a contact solve whose discrete KKT conditions on Gamma_C hold less well than
 // -kkt_tolerance asks, with the cause it sees and the remedy for that cause:
-//  (a) the user's stopping options are looser than the defaults and the residual they let through
-//      explains the KKT residual, where the default test would not have: tighten them;
+//  (a) the user's stopping options (-snes_rtol, -snes_atol, -ksp_rtol, -snes_vi_zero_tolerance, or no
+//      residual test at all) are looser than the defaults and let the KKT residual through, where the
+//      defaults would not have: tighten them;
 //  (b) stiff rows: a large kappa contrast between cells or very stretched cells, so that the residual norm
 //      SNESVI tests is dominated by the stiff rows and lets a wrong active set through (the KKT residual
 //      is within what the residual reached permits): the high-contrast preset;
