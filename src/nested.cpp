@@ -101,9 +101,9 @@ PetscErrorCode TransferActiveSet(const Space &coarse, Vec uH, Vec lowerH, const 
   PetscScalar       *f, *a;
   PetscReal          umax;
   PetscFunctionBeginUser;
-  // Active: u = psi up to round-off relative to the size of u (the solver projects active DOFs onto psi).
+  // Active as the contact solve counts it (ActiveTolerance), relative to the size of u.
   PetscCall(VecNorm(uH, NORM_INFINITY, &umax));
-  const PetscReal tol = 1e-10 * PetscMax(1.0, umax), eps = 1e-10;
+  const PetscReal tol = ActiveTolerance(umax), eps = 1e-10;
   PetscCall(DMGetLocalVector(coarse.dm, &locU));
   PetscCall(DMGetLocalVector(coarse.dm, &locL));
   PetscCall(DMGlobalToLocal(coarse.dm, uH, INSERT_VALUES, locU));

@@ -28,6 +28,16 @@ struct SolveResult {
   // only where some contact DOF is active. Round-off level when the solve converged; a solve that stopped
   // early (stiff rows dominating the SNES residual norm) shows here even when SNES reported convergence.
   PetscReal kktRelative = 0;
+  // What the stopping test allows, for the KKT hint (kkthint.h). SNESVI stops on the 2-norm of A u - b over
+  // the inactive set, which bounds |r_i| at every contact DOF that is not active, so the dual and
+  // complementarity residuals cannot exceed residual / (min contact measure * max pressure) (plus what
+  // SNESVI's bound tolerance lets through): kktReached is that bound for the residual where the solve
+  // stopped, kktDefault for the default stopping test (-snes_rtol 1e-9 from the start at u_D). Either
+  // grows as the mesh is refined (the measure is about h^(d-1)).
+  PetscReal   residual = 0, defaultTarget = 0; // the residual reached, and the default test's (units of b)
+  PetscReal   kktReached = 0, kktDefault = 0;
+  std::string loosened; // the stopping options the user set looser than the defaults ("-snes_rtol 0.001")
+  PetscInt    scaleExponent = 0; // the solve worked on u / 2^scaleExponent (DataScale::u, datascale.h)
   PetscReal stationarity = 0; // max |r| over DOFs that are neither Dirichlet nor contact, relative to max |load|
   PetscReal energy = 0;
   // Nested iteration: one entry per level solved, coarsest first, the finest (this solve) last; empty
@@ -56,6 +66,10 @@ PetscErrorCode SolverOptionsHelp(MPI_Comm comm);
 // Writes u_h, psi and the contact pressure at every contact DOF as CSV (x, y[, z], u, psi, pressure),
 // sorted by coordinates, gathered on rank 0: the free boundary seen along Gamma_C.
 PetscErrorCode WriteContactProfile(const Space &space, const Problem &problem, const System &sys, Vec u, const std::string &file);
+// A contact DOF counts as active where u - psi <= ActiveTolerance(max |u|): the solver puts active DOFs
+// exactly on psi, so round-off relative to the size of u is enough (and nothing absolute, so that the
+// count does not depend on the size of the data).
+inline PetscReal ActiveTolerance(PetscReal maxAbsU) { return 1e-10 * maxAbsU; }
 // psi at contact DOFs and -infinity elsewhere (a global vector of the space): the lower bound of K_h.
 PetscErrorCode ContactLowerBound(const Space &space, const Problem &problem, Vec lower);
 // Makes u admissible: u = u_D (sys.uD) on the Dirichlet DOFs (owned indices), u = max(u, lower) elsewhere
@@ -65,10 +79,13 @@ PetscErrorCode ProjectOntoConstraints(const System &sys, const std::vector<Petsc
 // from u_D (projected onto K_h); with it, from u with its Dirichlet DOFs set to u_D and its contact DOFs
 // projected onto u >= psi. Either way the solve stops at the same absolute residual, the one the
 // start from u_D would reach (its SNES rtol times its initial residual), so that a good initial guess
-// saves work without changing the discrete solution beyond solver tolerance. Pushes the Solve stage.
+// saves work without changing the discrete solution beyond solver tolerance. The solvers work on u and on
+// the equations divided by powers of 2 near their sizes (datascale.h), so the iterations do not depend on
+// the size of the data, and PETSc's absolute options (-snes_atol, -ksp_atol, -snes_vi_zero_tolerance,
+// -snes_linesearch_maxstep) are relative to it. Pushes the Solve stage.
 PetscErrorCode Solve(const Space &space, const Problem &problem, const System &sys, Vec u, SolveResult &result, const SolveOptions &opts = SolveOptions());
 // For the output, global vectors of the space that are 0 off Gamma_C: psi, the contact pressure
-// (A u - b) / measure (as in the KKT check), and the active set (1 where u - psi is at most 1e-10 max(1, max|u|),
+// (A u - b) / measure (as in the KKT check), and the active set (1 where u - psi is at most ActiveTolerance(max|u|),
 // the rule of SolveResult::active).
 PetscErrorCode ContactFields(const Space &space, const Problem &problem, const System &sys, Vec u, Vec psi, Vec pressure, Vec active);
 

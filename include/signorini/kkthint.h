@@ -1,0 +1,27 @@
+// The warning after a contact solve whose discrete KKT conditions on Gamma_C hold less well than
+// -kkt_tolerance asks, with the cause it sees and the remedy for that cause:
+//  (a) the user's stopping options (-snes_rtol, -snes_atol, -ksp_rtol, -snes_vi_zero_tolerance, or no
+//      residual test at all) are looser than the defaults and let the KKT residual through, where the
+//      defaults would not have: tighten them;
+//  (b) stiff rows: a large kappa contrast between cells or very stretched cells, so that the residual norm
+//      SNESVI tests is dominated by the stiff rows and lets a wrong active set through (the KKT residual
+//      is within what the residual reached permits): the high-contrast preset;
+//  (c) a KKT residual larger than the residual reached permits: what was measured, and what to try.
+// Otherwise the KKT residual is what the default stopping test permits on this mesh (the pressure divides
+// the reaction by a boundary measure of about h^(d-1), so the permitted residual grows under refinement):
+// the solve is as converged as it was asked to be, and nothing is printed.
+#pragma once
+
+#include "signorini/contact.h"
+
+namespace signorini {
+
+// The stiffness of the rows of A: max/min kappa over the cells, and the largest cell aspect ratio
+// (longest edge over smallest height: 2 for the right triangles of a box mesh). Collective.
+PetscErrorCode MeasureStiffness(const Space &space, const System &sys, PetscReal *kappaContrast, PetscReal *aspect);
+
+// Prints the warning (once, on rank 0) when r.kktRelative > tolerance and the cause is one of (a) to (c).
+// Collective.
+PetscErrorCode KKTHint(const Space &space, const System &sys, const SolveResult &r, PetscReal tolerance);
+
+} // namespace signorini

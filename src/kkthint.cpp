@@ -1,0 +1,79 @@
+#include "signorini/kkthint.h"
+#include "signorini/common.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace signorini {
+
+namespace {
+// Rows count as stiff from a kappa contrast of 100 or cells stretched 10 to 1 (their couplings then
+// differ by about 100): well below the contrasts (1e3 and more) and aspect ratios (1e3) where the
+// default stopping test has been seen to stop early, and well above what meshes of one material show
+// (aspect ratio about 2 for box meshes, below 10 for sound Gmsh meshes).
+constexpr PetscReal kStiffContrast = 100, kStiffAspect = 10;
+
+PetscReal AspectRatio(PetscInt dim, const PetscReal *X)
+{
+  CellGeometry g;
+  if (!ComputeCellGeometry(dim, X, g)) return PETSC_INFINITY;
+  PetscReal edge = 0, grad = 0; // longest edge; largest |grad lambda_k| = 1 / smallest height
+  for (PetscInt i = 0; i <= dim; ++i) {
+    PetscReal n = 0;
+    for (PetscInt d = 0; d < dim; ++d) n += g.gradLambda[i][d] * g.gradLambda[i][d];
+    grad = std::max(grad, std::sqrt(n));
+    for (PetscInt j = i + 1; j <= dim; ++j) {
+      PetscReal e = 0;
+      for (PetscInt d = 0; d < dim; ++d) e += (X[i * dim + d] - X[j * dim + d]) * (X[i * dim + d] - X[j * dim + d]);
+      edge = std::max(edge, std::sqrt(e));
+    }
+  }
+  return edge * grad;
+}
+} // namespace
+
+PetscErrorCode MeasureStiffness(const Space &space, const System &sys, PetscReal *kappaContrast, PetscReal *aspect)
+{
+  PetscReal kmin = PETSC_MAX_REAL, maxs[2] = {0, 0}; // max kappa, max aspect ratio
+  PetscFunctionBeginUser;
+  for (PetscInt c = 0; c < space.NumCells(); ++c) {
+    kmin    = std::min(kmin, sys.Kappa(c));
+    maxs[0] = std::max(maxs[0], sys.Kappa(c));
+    maxs[1] = std::max(maxs[1], AspectRatio(space.dim, space.X(c)));
+  }
+  MPI_Comm comm = PetscObjectComm((PetscObject)space.dm);
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &kmin, 1, MPIU_REAL, MPI_MIN, comm));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, maxs, 2, MPIU_REAL, MPI_MAX, comm));
+  *kappaContrast = kmin > 0 ? maxs[0] / kmin : PETSC_INFINITY;
+  *aspect        = maxs[1];
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode KKTHint(const Space &space, const System &sys, const SolveResult &r, PetscReal tolerance)
+{
+  MPI_Comm comm = PetscObjectComm((PetscObject)space.dm);
+  PetscFunctionBeginUser;
+  if (!r.vi || !(r.kktRelative > tolerance)) PetscFunctionReturn(0);
+  const std::string head = Format("signorini: warning: the discrete KKT conditions on Gamma_C hold only to %.1e relative (-kkt_tolerance %g)", (double)r.kktRelative, (double)tolerance);
+  // The bounds are exact up to round-off in A u - b; a little room keeps a residual at the bound in (a)/(b).
+  const PetscReal reached = r.kktReached * (1 + 1e-6) + 1e-14;
+  if (r.kktRelative > reached) {
+    PetscCall(PetscPrintf(comm, "%s, more than the residual the solve stopped at (%.1e) permits (%.1e): min pressure %.1e of max %.1e, max |(u - psi) pressure| %.1e, %" PetscInt_FMT " active contact DOFs; look at the solve with -snes_monitor -snes_vi_monitor, and try -snes_vi_zero_tolerance 0, or a direct solve (-options_file petsc-options/solvers/mumps) on a small mesh\n", head.c_str(),
+                          (double)r.residual, (double)r.kktReached, (double)r.dual, (double)r.pressureMax, (double)r.complementarity, r.active));
+    PetscFunctionReturn(0);
+  }
+  if (!r.loosened.empty() && r.kktRelative > r.kktDefault) {
+    PetscCall(PetscPrintf(comm, "%s: the solver options %s, looser than the defaults, let this through (the solve stopped at a residual of %.1e, which permits %.1e; the defaults permit %.1e): tighten them (defaults: -snes_rtol 1e-9, -ksp_rtol 1e-10, -snes_vi_zero_tolerance 1e-8, no -snes_atol%s)\n", head.c_str(), r.loosened.c_str(), (double)r.residual, (double)r.kktReached, (double)r.kktDefault,
+                          r.loosened.find("skip") != std::string::npos ? "; with -snes_convergence_test skip, more -snes_max_it" : ""));
+    PetscFunctionReturn(0);
+  }
+  PetscReal contrast, aspect;
+  PetscCall(MeasureStiffness(space, sys, &contrast, &aspect));
+  if (contrast >= kStiffContrast || aspect >= kStiffAspect) {
+    PetscCall(PetscPrintf(comm, "%s: stiff rows (kappa max/min %.3g, cell aspect ratio up to %.3g) dominate the residual norm that SNESVI tests, so it stopped before the active set settled (at %.1e, which permits KKT residuals up to %.1e); add -options_file petsc-options/solvers/high-contrast\n", head.c_str(), (double)contrast, (double)aspect, (double)r.residual, (double)r.kktReached));
+  }
+  // Otherwise: what the default stopping test permits on this mesh (see kkthint.h).
+  PetscFunctionReturn(0);
+}
+
+} // namespace signorini

@@ -1,0 +1,83 @@
+"""Scale invariance (an invariant of the discrete problem): with psi = 0 and u_D = 0 the admissible set K_h is a
+cone, so the solution for the load s f is s u(f) and its energy J(s f) = s^2 J(f). The solvers work on the data
+divided by a power of 2 near the size of u, so that PETSc's absolute thresholds follow the data: every s must give
+the same Newton and KSP iterations (on every nested level) and the same active set. Checked for s = 1e-60 ... 1e60
+with P1 and CR: with contact and nested iteration (-refine 2, the default path; also the KSP iterations of the
+-compare_linear solve), with contact without it, and
+without contact (one linear solve); on 1 rank and, for P1 with nested iteration, on 2 ranks. Scaling kappa
+instead divides u and J by the factor, again with the same iterations. Data whose solution
+double precision cannot hold (its energy would under- or overflow) stop with one error line and write no summary."""
+import os
+import tempfile
+
+from harness import Checker, run, scene
+
+c = Checker()
+FACTORS = ["1e-60", "1e-20", "1", "1e20", "1e60"]
+TOL = 1e-12  # J(s f) / s^2 against J(f): only the rounding of s f in the data separates them
+
+
+def load(s):
+    return ["-f", "%s*2*pi*sin(2*pi*x)" % s]
+
+
+def iterations(summary):
+    solver = summary["solver"]
+    return (solver["newton_iterations"], solver.get("ksp_iterations"),
+            [(l["newton"], l["ksp"]) for l in solver.get("levels", [])], solver.get("linear_ksp_iterations"))
+
+
+def compare(tag, args, ranks=1, contact=True):
+    runs = {}
+    for s in FACTORS:
+        _, out, _, summary = run(args + load(s), ranks=ranks)
+        runs[s] = summary
+        label = "%s s=%s" % (tag, s)
+        c.check(summary["solver"]["converged_reason"].startswith("CONVERGED"), "%s: %s" % (label, summary["solver"]["converged_reason"]))
+        c.check("warning" not in out, "%s: no warning" % label)
+        if contact:
+            c.check(summary["kkt"]["relative"] <= 1e-8, "%s: relative KKT residual %.1e" % (label, summary["kkt"]["relative"]))
+    base = runs["1"]
+    for s, summary in runs.items():
+        f = float(s)
+        label = "%s s=%s" % (tag, s)
+        its, its1 = iterations(summary), iterations(base)
+        c.check(its == its1, "%s: iterations (Newton, KSP, per level, -compare_linear KSP) %s = %s at s = 1" % (label, its, its1))
+        j, j1 = summary["energy"] / (f * f), base["energy"]
+        c.check(abs(j - j1) <= TOL * abs(j1), "%s: J(s f) / s^2 = %.15e, J(f) = %.15e" % (label, j, j1))
+        if contact:
+            k, k1 = summary["kkt"], base["kkt"]
+            c.check(k["active"] == k1["active"], "%s: %d active contact DOFs (%d at s = 1)" % (label, k["active"], k1["active"]))
+            g = k["max_gap"] / f
+            c.check(abs(g - k1["max_gap"]) <= TOL * k1["max_gap"], "%s: max(u - psi) / s = %.15e (s = 1: %.15e)" % (label, g, k1["max_gap"]))
+
+
+paper = scene("paper-5.1") + ["-box_faces", "8"]
+for space in ["p1", "cr"]:
+    compare("paper-5.1 %s nested -refine 2 -compare_linear" % space, paper + ["-space", space, "-refine", "2", "-compare_linear"])
+    compare("paper-5.1 %s -refine 2 -nested 0" % space, paper + ["-space", space, "-refine", "2", "-nested", "0"])
+    compare("paper-5.1 %s without contact" % space, paper + ["-space", space, "-refine", "1", "-bc_contact", "", "-bc_neumann", "1,2,4"], contact=False)
+compare("paper-5.1 p1 nested -refine 2, 2 ranks", paper + ["-space", "p1", "-refine", "2"], ranks=2)
+
+# kappa scaled by 1e-60 and 1e60 (the equations' scale follows the matrix): u(kappa) = u(1) / kappa, J likewise.
+runs = {k: run(paper + ["-space", "cr", "-refine", "1", "-kappa", k])[3] for k in ["1e-60", "1", "1e60"]}
+for k, summary in runs.items():
+    base, f = runs["1"], float(k)
+    label = "paper-5.1 cr nested -refine 1 kappa=%s" % k
+    c.check(iterations(summary) == iterations(base), "%s: iterations %s = %s at kappa = 1" % (label, iterations(summary), iterations(base)))
+    c.check(abs(summary["energy"] * f - base["energy"]) <= TOL * abs(base["energy"]), "%s: kappa J = %.15e, J(kappa = 1) = %.15e" % (label, summary["energy"] * f, base["energy"]))
+
+# Out of range: one error line, exit status 1, no summary file.
+for s, word in [("1e-300", "too small"), ("1e300", "too large")]:
+    with tempfile.TemporaryDirectory() as tmp:
+        summary = os.path.join(tmp, "run.json")
+        for ranks in [1, 2]:
+            rc, out, err, _ = run(paper + load(s) + ["-summary", summary], ranks=ranks, check=False)
+            lines = [l for l in (out + err).splitlines() if l.strip()]
+            ours = [l for l in lines if l.startswith("signorini:")]
+            # On 2 ranks mpirun adds its own notice about the non-zero exit status; ours must appear once.
+            c.check(rc == 1 and len(ours) == 1 and (ranks > 1 or len(lines) == 1) and "MPI_ABORT" not in err
+                    and ours[0].startswith("signorini: error: the data are %s for double precision" % word),
+                    "load %s, %d rank(s): exit %d, one error line: %s" % (s, ranks, rc, ours))
+            c.check(os.listdir(tmp) == [], "load %s, %d rank(s): no file written" % (s, ranks))
+c.done()
