@@ -4,6 +4,8 @@
 #include "signorini/stages.h"
 
 #include <algorithm>
+#include <cfloat>
+#include <cmath>
 
 namespace signorini {
 
@@ -32,6 +34,20 @@ void ElementStiffness(const Space &space, PetscInt c, PetscReal kappa, const Cel
     }
 }
 
+// The load as double precision holds it: f (or g) times a quadrature weight and a cell measure may
+// underflow. A fast-decaying load does that far from its peak, which is harmless; a load whose every
+// contribution underflows, while f itself is not zero, would give u = 0 without a word.
+struct LoadRange {
+  PetscReal maxValue = 0, maxIntegrand = 0; // largest |f(x)| and |f(x) w |T|| seen
+  std::string example;                      // the first point where a nonzero value underflowed
+  void Record(const Expression &e, PetscReal value, PetscReal integrand, const PetscReal *x, PetscInt dim)
+  {
+    maxValue     = std::max(maxValue, std::fabs(value));
+    maxIntegrand = std::max(maxIntegrand, std::fabs(integrand));
+    if (value != 0 && !(std::fabs(integrand) >= DBL_MIN) && example.empty()) example = Format("option %s: '%s' is %g at (%g, %g, %g), which times the cell measure underflows double precision, and so does every other value of the load; multiply the data by a power of ten and divide the solution by it", e.Option().c_str(), e.Text().c_str(), (double)value, (double)x[0], (double)x[1], dim == 3 ? (double)x[2] : 0.0);
+  }
+};
+
 // kappa is taken constant on each cell (its centroid value), so the stiffness integral is exact for
 // coefficients that are piecewise constant on the mesh, including jumps between cell sets.
 static PetscErrorCode CellCoefficients(const Space &space, const Problem &problem, System &sys)
@@ -54,7 +70,7 @@ static PetscErrorCode CellCoefficients(const Space &space, const Problem &proble
 }
 
 // Cell loop: stiffness into A, f-load into the local load vector.
-static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, System &sys, PetscScalar *load, std::string &error)
+static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, System &sys, PetscScalar *load, LoadRange &range, std::string &error)
 {
   const PetscInt nb = space.Nb();
   PetscReal      Ke[16], be[4], x[3];
@@ -72,7 +88,8 @@ static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, 
     for (PetscInt q = 0; q < sys.cellRule.Size(); ++q) {
       const PetscReal *lambda = sys.cellRule.Point(q);
       SimplexPoint(space.dim, X, lambda, x);
-      const PetscReal fq = problem.f->Scalar(x, space.dim, error) * sys.cellRule.weights[q] * g.volume;
+      const PetscReal fx = problem.f->Scalar(x, space.dim, error), fq = fx * sys.cellRule.weights[q] * g.volume;
+      range.Record(*problem.f, fx, fq, x, space.dim);
       for (PetscInt i = 0; i < nb; ++i) be[i] += fq * space.BasisValue(c, i, lambda);
     }
     for (PetscInt i = 0; i < nb; ++i) load[space.Dofs(c)[i]] += be[i];
@@ -81,7 +98,7 @@ static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, 
 }
 
 // Neumann term: integral of g * phi_i over the faces of Gamma_N, with the face rule mapped into the cell.
-static void AssembleNeumann(const Space &space, const Problem &problem, const System &sys, PetscScalar *load, std::string &error)
+static void AssembleNeumann(const Space &space, const Problem &problem, const System &sys, PetscScalar *load, LoadRange &range, std::string &error)
 {
   PetscReal lambda[4], x[3];
   for (const BoundaryFace &bf : space.boundary) {
@@ -91,7 +108,8 @@ static void AssembleNeumann(const Space &space, const Problem &problem, const Sy
     for (PetscInt q = 0; q < sys.faceRule.Size(); ++q) {
       space.FaceToCell(bf, sys.faceRule.Point(q), lambda);
       space.Point(bf.cell, lambda, x);
-      const PetscReal gq = problem.g->Scalar(x, space.dim, error) * sys.faceRule.weights[q] * area;
+      const PetscReal gx = problem.g->Scalar(x, space.dim, error), gq = gx * sys.faceRule.weights[q] * area;
+      range.Record(*problem.g, gx, gq, x, space.dim);
       for (PetscInt i = 0; i < space.Nb(); ++i) load[space.Dofs(bf.cell)[i]] += gq * space.BasisValue(bf.cell, i, lambda);
     }
   }
@@ -145,8 +163,12 @@ PetscErrorCode AssembleSystem(const Space &space, const Problem &problem, const 
   PetscCall(VecSet(loc, 0));
   PetscCall(VecGetArray(loc, &a));
   PetscCall(PetscLogEventBegin(cellLoop, 0, 0, 0, 0));
-  PetscCall(AssembleCells(space, problem, sys, a, error));
-  if (problem.HasNeumann()) AssembleNeumann(space, problem, sys, a, error);
+  LoadRange range;
+  PetscCall(AssembleCells(space, problem, sys, a, range, error));
+  if (problem.HasNeumann()) AssembleNeumann(space, problem, sys, a, range, error);
+  PetscReal maxes[2] = {range.maxValue, range.maxIntegrand};
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, maxes, 2, MPIU_REAL, MPI_MAX, comm));
+  if (maxes[0] > 0 && !(maxes[1] >= DBL_MIN) && error.empty()) error = range.example;
   PetscCall(PetscLogEventEnd(cellLoop, 0, 0, 0, 0));
   PetscCall(VecRestoreArray(loc, &a));
   PetscCall(MatAssemblyBegin(sys.A, MAT_FINAL_ASSEMBLY));

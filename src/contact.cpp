@@ -12,9 +12,15 @@
 namespace signorini {
 
 namespace {
-// The default stopping tolerances of the contact solve (and of the linear solves inside it), and PETSc
-// 3.18's default bound tolerance of SNESVI (a DOF within it of psi, with a positive residual, is active).
-constexpr PetscReal kSnesRtol = 1e-9, kKspRtol = 1e-10, kZeroTolerance = 1e-8;
+// The default stopping tolerances of the contact solve (and of the linear solves inside it), and the bound
+// tolerance of SNESVI (a DOF within it of psi, with a positive residual, is active), in the units of the
+// scaled solve (the largest data near 1, see datascale.h). PETSc's own 1e-8 is absolute: once u is scaled
+// by the largest data, a scene whose solution on Gamma_C is far smaller than elsewhere (stiff-layers with
+// kappa 1e-9 above: u ~ 1e9 at the top, ~0.1 on Gamma_C) had every contact DOF within 1e-8 of psi, so all
+// of them counted as active whatever their value, and the solve freed one per Newton step (107 steps, the
+// high-contrast preset's 30 not enough). The solver puts active DOFs exactly on psi (it projects onto the
+// bounds and does not move active DOFs), so round-off of the largest values is all the tolerance needs.
+constexpr PetscReal kSnesRtol = 1e-9, kKspRtol = 1e-10, kZeroTolerance = 1e-14;
 
 struct ResidualContext {
   Mat  A;
@@ -223,6 +229,21 @@ static PetscErrorCode AdaptToSNESType(SNES snes, const System &sys, ResidualCont
     }
     PetscCall(AmgReuseJacobian(snes, sys.A, J));
     PetscCall(SNESSetJacobian(snes, *J, *J, ConstantJacobian, &ctx));
+    // Full steps unless the user chose a line search. The problem is linear on the inactive set, so a full
+    // reduced-space step solves it exactly for the current active set (the primal-dual active set method);
+    // the default bt line search judges the step by ||F|| on the inactive set, which is no merit function
+    // when the active set changes: from a guess whose active set is far off (a coarse level that cannot
+    // resolve the load, e.g. stiff-critical k = 64 through box 8x8) it cut every step to 1e-3 and took 39
+    // Newton steps where full steps take 2.
+    const char *prefix;
+    PetscBool   chosen;
+    PetscCall(SNESGetOptionsPrefix(snes, &prefix));
+    PetscCall(PetscOptionsHasName(NULL, prefix, "-snes_linesearch_type", &chosen));
+    if (!chosen) {
+      SNESLineSearch ls;
+      PetscCall(SNESGetLineSearch(snes, &ls));
+      PetscCall(SNESLineSearchSetType(ls, SNESLINESEARCHBASIC));
+    }
     PetscFunctionReturn(0);
   }
   PetscCall(MatDuplicate(sys.A, MAT_COPY_VALUES, J));
@@ -287,7 +308,12 @@ static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &
   AmgReuseOptions reuse = opts.amgReuse;
   reuse.goodStart       = opts.initialGuess;
   PetscCall(AmgReuseInstall(snes, reuse, &r.amg));
-  PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)snes), SNESSetFromOptions(snes)));
+  PetscBool zeroTolSet; // PETSc 3.18 sets the bound tolerance only through its option
+  PetscCall(PetscOptionsHasName(NULL, NULL, "-snes_vi_zero_tolerance", &zeroTolSet));
+  if (!zeroTolSet) PetscCall(PetscOptionsSetValue(NULL, "-snes_vi_zero_tolerance", Format("%g", (double)kZeroTolerance).c_str()));
+  const PetscErrorCode fromOptions = SNESSetFromOptions(snes);
+  if (!zeroTolSet) PetscCall(PetscOptionsClearValue(NULL, "-snes_vi_zero_tolerance"));
+  PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)snes), fromOptions));
   SNESType  type; // the bounds u >= psi need a VI solver; PETSc would refuse another one only inside SNESSolve
   PetscBool vi;
   PetscCall(SNESGetType(snes, &type));

@@ -63,7 +63,7 @@ PetscErrorCode KKTHint(const Space &space, const System &sys, const SolveResult 
     PetscFunctionReturn(0);
   }
   if (!r.loosened.empty() && r.kktRelative > r.kktDefault) {
-    PetscCall(PetscPrintf(comm, "%s: the solver options %s, looser than the defaults, let this through (the solve stopped at a residual of %.1e, which permits %.1e; the defaults permit %.1e): tighten them (defaults: -snes_rtol 1e-9, -ksp_rtol 1e-10, -snes_vi_zero_tolerance 1e-8, no -snes_atol%s)\n", head.c_str(), r.loosened.c_str(), (double)r.residual, (double)r.kktReached, (double)r.kktDefault,
+    PetscCall(PetscPrintf(comm, "%s: the solver options %s, looser than the defaults, let this through (the solve stopped at a residual of %.1e, which permits %.1e; the defaults permit %.1e): tighten them (defaults: -snes_rtol 1e-9, -ksp_rtol 1e-10, -snes_vi_zero_tolerance 1e-14, no -snes_atol%s)\n", head.c_str(), r.loosened.c_str(), (double)r.residual, (double)r.kktReached, (double)r.kktDefault,
                           r.loosened.find("skip") != std::string::npos ? "; with -snes_convergence_test skip, more -snes_max_it" : ""));
     PetscFunctionReturn(0);
   }
