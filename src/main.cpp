@@ -10,7 +10,6 @@ static const char help[] =
 #include "signorini/assembly.h"
 #include "signorini/contact.h"
 #include "signorini/error.h"
-#include "signorini/kkthint.h"
 #include "signorini/mesh.h"
 #include "signorini/nested.h"
 #include "signorini/options.h"
@@ -124,11 +123,8 @@ static PetscErrorCode Run(MPI_Comm comm)
   PetscCall(PipelineSetUp(mesh, s.problem, po, fine));
   Space &space = fine.space;
   Vec    u     = fine.u;
-  if (nested) {
-    PetscCall(NestedSolve(levels, s.problem, s.assembly, space, fine.sys, u, fine.result, s.solve));
-    fine.result.levels.back().setupSeconds = fine.setupSeconds;
-    PetscCall(KKTHint(space, fine.sys, fine.result, s.solve.kktTolerance));
-  } else PetscCall(PipelineSolve(s.problem, po, fine));
+  if (nested) PetscCall(NestedSolve(levels, s.problem, po, fine));
+  else PetscCall(PipelineSolve(s.problem, po, fine));
   PetscCall(MeshLevelsDestroy(levels));
   report.solve = fine.result;
   if (s.problem.HasExact()) PetscCall(ErrorAgainstExact(space, s.problem, u, s.errorDegree, report.error));
