@@ -17,18 +17,6 @@ PetscErrorCode NestedOptionsFromCommandLine(MPI_Comm comm, NestedOptions &o)
 }
 
 namespace {
-// Barycentric coordinates of x with respect to a cell of the given geometry and first vertex X0.
-void Barycentric(PetscInt dim, const CellGeometry &g, const PetscReal *X0, const PetscReal *x, PetscReal *lambda)
-{
-  PetscReal sum = 0;
-  for (PetscInt k = 1; k <= dim; ++k) {
-    lambda[k] = 0;
-    for (PetscInt d = 0; d < dim; ++d) lambda[k] += g.gradLambda[k][d] * (x[d] - X0[d]);
-    sum += lambda[k];
-  }
-  lambda[0] = 1 - sum;
-}
-
 // Calls f(c, i, dof, lambda) for every DOF i of every fine cell c, with lambda the barycentric
 // coordinates of the DOF's point in the parent cell.
 template <class F>
@@ -74,9 +62,7 @@ PetscErrorCode Prolongate(const Space &coarse, Vec uH, const Space &fine, const 
   // fine face. The mean is the usual choice (it does not prefer either cell and keeps affine functions,
   // which are continuous, exact); the sums make it independent of which rank owns the DOF.
   ForEachFineDof(coarse, fine, parent, [&](PetscInt pc, PetscInt dof, const PetscReal *lambda) {
-    PetscReal v = 0;
-    for (PetscInt j = 0; j < coarse.Nb(); ++j) v += PetscRealPart(aH[coarse.Dofs(pc)[j]]) * coarse.BasisValue(pc, j, lambda);
-    s[dof] += v;
+    s[dof] += coarse.Value(pc, aH, lambda);
     n[dof] += 1;
   });
   PetscCall(VecRestoreArray(count, &n));
