@@ -28,23 +28,20 @@ PetscErrorCode ErrorAgainstExact(const Space &space, const Problem &problem, Vec
   PetscCall(DMGetLocalVector(space.dm, &loc));
   PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, loc));
   PetscCall(VecGetArrayRead(loc, &a));
-  const PetscInt nb = space.Nb(), dim = space.dim;
+  const PetscInt dim = space.dim;
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
     CellGeometry g;
     ComputeCellGeometry(dim, space.X(c), g);
     // u_h is affine on the cell: its gradient is constant.
-    PetscReal gradh[3] = {0, 0, 0}, grad[3];
-    for (PetscInt i = 0; i < nb; ++i) {
-      space.BasisGrad(c, i, g, grad);
-      for (PetscInt d = 0; d < dim; ++d) gradh[d] += PetscRealPart(a[space.Dofs(c)[i]]) * grad[d];
-    }
+    PetscReal gradh[3];
+    space.Grad(c, a, g, gradh);
     problem.exact->SetCellSet(space.CellSet(c));
     problem.exactGrad->SetCellSet(space.CellSet(c));
     for (PetscInt q = 0; q < rule.Size(); ++q) {
       const PetscReal *lambda = rule.Point(q);
-      PetscReal        x[3], uh = 0, du[3];
+      PetscReal        x[3], du[3];
       space.Point(c, lambda, x);
-      for (PetscInt i = 0; i < nb; ++i) uh += PetscRealPart(a[space.Dofs(c)[i]]) * space.BasisValue(c, i, lambda);
+      const PetscReal uh = space.Value(c, a, lambda);
       const PetscReal ue = problem.exact->Scalar(x, dim, error);
       problem.exactGrad->Eval(x, dim, du, error);
       PetscReal d2 = 0;
@@ -65,7 +62,8 @@ PetscErrorCode ErrorAgainstExact(const Space &space, const Problem &problem, Vec
   PetscFunctionReturn(0);
 }
 
-// Values of the discrete function on a cell: u_h(x) = sum_i a_i phi_i(x), grad u_h constant.
+// The discrete function on one cell, evaluated at physical points (of that cell or, for the reference,
+// of one of its sub-cells).
 namespace {
 struct CellFunction {
   const Space       *space;
@@ -79,27 +77,13 @@ struct CellFunction {
     a     = array;
     c     = cell;
     ComputeCellGeometry(s.dim, s.X(c), g);
-    PetscReal gi[3];
-    for (PetscInt d = 0; d < 3; ++d) grad[d] = 0;
-    for (PetscInt i = 0; i < s.Nb(); ++i) {
-      s.BasisGrad(c, i, g, gi);
-      for (PetscInt d = 0; d < s.dim; ++d) grad[d] += PetscRealPart(a[s.Dofs(c)[i]]) * gi[d];
-    }
+    s.Grad(c, a, g, grad);
   }
   PetscReal Value(const PetscReal *x) const
   {
-    // barycentric coordinates of x: lambda_k = grad lambda_k . (x - X_0) for k >= 1
-    const PetscInt   dim = space->dim;
-    const Space::Coords X0 = space->X(c);
-    PetscReal        lambda[4], sum = 0, v = 0;
-    for (PetscInt k = 1; k <= dim; ++k) {
-      lambda[k] = 0;
-      for (PetscInt d = 0; d < dim; ++d) lambda[k] += g.gradLambda[k][d] * (x[d] - X0[d]);
-      sum += lambda[k];
-    }
-    lambda[0] = 1 - sum;
-    for (PetscInt i = 0; i <= dim; ++i) v += PetscRealPart(a[space->Dofs(c)[i]]) * space->BasisValue(c, i, lambda);
-    return v;
+    PetscReal lambda[4];
+    Barycentric(space->dim, g, space->X(c), x, lambda);
+    return space->Value(c, a, lambda);
   }
 };
 } // namespace

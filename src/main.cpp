@@ -10,11 +10,11 @@ static const char help[] =
 #include "signorini/assembly.h"
 #include "signorini/contact.h"
 #include "signorini/error.h"
-#include "signorini/kkthint.h"
 #include "signorini/mesh.h"
 #include "signorini/nested.h"
 #include "signorini/options.h"
 #include "signorini/output.h"
+#include "signorini/pipeline.h"
 #include "signorini/problem.h"
 #include "signorini/report.h"
 #include "signorini/sizes.h"
@@ -72,9 +72,6 @@ static PetscErrorCode Run(MPI_Comm comm)
   Report         report;
   DM             mesh;
   MeshInfo       meshInfo;
-  Space          space;
-  System         sys;
-  Vec            u;
   Output         output; // removes its temporary file if the run ends before OutputEnd
   PetscLogDouble start;
   PetscBool      help = PETSC_FALSE;
@@ -109,37 +106,27 @@ static PetscErrorCode Run(MPI_Comm comm)
     PetscCall(DMDestroy(&mesh));
     PetscFunctionReturn(0);
   }
-  PetscLogDouble t0;
-  double         setupSeconds; // the finest level's space and assembly, reported with the nested levels
-  PetscCall(PetscTime(&t0));
-  PetscCall(StagePush(Stage::Setup));
-  PetscCall(SpaceCreate(mesh, s.element, s.problem, space));
-  PetscCall(StagePop(Stage::Setup));
-  // Nothing after this point needs the mesh (the output file gets it now): free it before the assembly
-  // and the solve need the memory (a tetrahedral mesh has about 25 points per P1 DOF).
-  double outputSeconds = 0; // not part of the set-up
-  if (!s.output.file.empty()) {
-    PetscLogDouble t1;
-    PetscCall(PetscTime(&t1));
-    PetscCall(OutputBegin(space, s.output, output));
-    PetscCall(SecondsSince(comm, t1, &outputSeconds));
-  }
-  PetscCall(SpaceReleaseMesh(space));
-  PetscCall(DMDestroy(&mesh));
-  if (nested) PetscCall(DMDestroy(&levels.dm.back()));
-  PetscCall(AssembleSystem(space, s.problem, s.assembly, sys));
-  PetscCall(SecondsSince(comm, t0, &setupSeconds));
-  setupSeconds -= outputSeconds;
-  PetscCall(DMCreateGlobalVector(space.dm, &u));
-  PetscCall(PetscObjectSetName((PetscObject)u, "u"));
-  if (nested) {
-    PetscCall(NestedSolve(levels, s.problem, s.assembly, space, sys, u, report.solve, s.solve));
-    report.solve.levels.back().setupSeconds = setupSeconds;
-  } else PetscCall(Solve(space, s.problem, sys, u, report.solve, s.solve));
+  PipelineOptions po;
+  po.element  = s.element;
+  po.assembly = s.assembly;
+  po.solve    = s.solve;
+  po.withMesh = [&](const Space &space) {
+    PetscFunctionBeginUser;
+    if (!s.output.file.empty()) PetscCall(OutputBegin(space, s.output, output));
+    // Nothing after this point needs the mesh (the output file has it now): free it before the assembly
+    // and the solve need the memory (a tetrahedral mesh has about 25 points per P1 DOF).
+    PetscCall(DMDestroy(&mesh));
+    if (nested) PetscCall(DMDestroy(&levels.dm.back()));
+    PetscFunctionReturn(0);
+  };
+  MeshSolution fine;
+  PetscCall(PipelineSetUp(mesh, s.problem, po, fine));
+  Space &space = fine.space;
+  Vec    u     = fine.u;
+  if (nested) PetscCall(NestedSolve(levels, s.problem, po, fine));
+  else PetscCall(PipelineSolve(s.problem, po, fine));
   PetscCall(MeshLevelsDestroy(levels));
-  // SNES judges convergence by a residual norm that the stiffest rows dominate; the KKT conditions judge
-  // the answer itself, so a solve that stopped early does not pass unseen.
-  PetscCall(KKTHint(space, sys, report.solve, s.solve.kktTolerance));
+  report.solve = fine.result;
   if (s.problem.HasExact()) PetscCall(ErrorAgainstExact(space, s.problem, u, s.errorDegree, report.error));
 
   report.scene         = s.problem.scene;
@@ -158,15 +145,13 @@ static PetscErrorCode Run(MPI_Comm comm)
   report.ranks         = (PetscInt)meshInfo.cellsPerRank.size();
   report.hasExact      = s.problem.HasExact();
   ReportRecordExpressions(s.problem, report);
-  if (!s.output.file.empty()) PetscCall(OutputEnd(space, s.problem, sys, u, output));
+  if (!s.output.file.empty()) PetscCall(OutputEnd(space, s.problem, fine.sys, u, output));
   PetscCall(ReportGatherTimes(comm, start, report));
-  PetscCall(ReportGatherMemory(comm, sys.A, report));
+  PetscCall(ReportGatherMemory(comm, fine.sys.A, report));
   PetscCall(ReportPrint(comm, report));
   if (!s.summaryFile.empty()) PetscCall(ReportWriteJSON(comm, report, s.summaryFile));
 
-  PetscCall(VecDestroy(&u));
-  PetscCall(SystemDestroy(sys));
-  PetscCall(SpaceDestroy(space));
+  PetscCall(fine.Destroy());
   PetscCall(DMDestroy(&mesh));
   PetscFunctionReturn(0);
 }

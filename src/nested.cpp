@@ -17,18 +17,6 @@ PetscErrorCode NestedOptionsFromCommandLine(MPI_Comm comm, NestedOptions &o)
 }
 
 namespace {
-// Barycentric coordinates of x with respect to a cell of the given geometry and first vertex X0.
-void Barycentric(PetscInt dim, const CellGeometry &g, const PetscReal *X0, const PetscReal *x, PetscReal *lambda)
-{
-  PetscReal sum = 0;
-  for (PetscInt k = 1; k <= dim; ++k) {
-    lambda[k] = 0;
-    for (PetscInt d = 0; d < dim; ++d) lambda[k] += g.gradLambda[k][d] * (x[d] - X0[d]);
-    sum += lambda[k];
-  }
-  lambda[0] = 1 - sum;
-}
-
 // Calls f(c, i, dof, lambda) for every DOF i of every fine cell c, with lambda the barycentric
 // coordinates of the DOF's point in the parent cell.
 template <class F>
@@ -74,9 +62,7 @@ PetscErrorCode Prolongate(const Space &coarse, Vec uH, const Space &fine, const 
   // fine face. The mean is the usual choice (it does not prefer either cell and keeps affine functions,
   // which are continuous, exact); the sums make it independent of which rank owns the DOF.
   ForEachFineDof(coarse, fine, parent, [&](PetscInt pc, PetscInt dof, const PetscReal *lambda) {
-    PetscReal v = 0;
-    for (PetscInt j = 0; j < coarse.Nb(); ++j) v += PetscRealPart(aH[coarse.Dofs(pc)[j]]) * coarse.BasisValue(pc, j, lambda);
-    s[dof] += v;
+    s[dof] += coarse.Value(pc, aH, lambda);
     n[dof] += 1;
   });
   PetscCall(VecRestoreArray(count, &n));
@@ -148,56 +134,25 @@ PetscErrorCode TransferActiveSet(const Space &coarse, Vec uH, Vec lowerH, const 
 }
 
 namespace {
-// One coarse level: its space, system, solution and lower bound.
-struct Level {
-  Space  space;
-  System sys;
-  Vec    u = nullptr, lower = nullptr;
-  PetscErrorCode Destroy()
-  {
-    PetscFunctionBeginUser;
-    PetscCall(VecDestroy(&u));
-    PetscCall(VecDestroy(&lower));
-    PetscCall(SystemDestroy(sys));
-    PetscCall(SpaceDestroy(space));
-    PetscFunctionReturn(0);
-  }
-};
-
 // uh = prolongation of the coarse level's solution with its active set (Solve projects it onto the fine
 // level's constraints). Part of the Solve stage; `seconds` is its wall time (max over ranks).
-PetscErrorCode ProlongateLevel(const Level &coarse, const Space &fine, const std::vector<PetscInt> &parent, const Problem &problem, Vec uh, double &seconds)
+PetscErrorCode ProlongateLevel(const MeshSolution &coarse, const Space &fine, const std::vector<PetscInt> &parent, const Problem &problem, Vec uh, double &seconds)
 {
-  Vec            lowerh;
+  Vec            lowerH, lowerh;
   PetscLogDouble t0;
   PetscFunctionBeginUser;
   PetscCall(PetscTime(&t0));
   PetscCall(StagePush(Stage::Solve));
   PetscCall(Prolongate(coarse.space, coarse.u, fine, parent, uh));
+  PetscCall(VecDuplicate(coarse.u, &lowerH));
+  PetscCall(ContactLowerBound(coarse.space, problem, lowerH));
   PetscCall(VecDuplicate(uh, &lowerh));
   PetscCall(ContactLowerBound(fine, problem, lowerh));
-  PetscCall(TransferActiveSet(coarse.space, coarse.u, coarse.lower, fine, parent, lowerh, uh));
+  PetscCall(TransferActiveSet(coarse.space, coarse.u, lowerH, fine, parent, lowerh, uh));
   PetscCall(VecDestroy(&lowerh));
+  PetscCall(VecDestroy(&lowerH));
   PetscCall(StagePop(Stage::Solve));
   PetscCall(SecondsSince(PetscObjectComm((PetscObject)uh), t0, &seconds));
-  PetscFunctionReturn(0);
-}
-
-// Space, system, solution vector and lower bound of a coarse level (Setup and Assemble stages).
-PetscErrorCode SetUpLevel(DM dm, Element element, const Problem &problem, const AssemblyOptions &assembly, Level &level, double &seconds)
-{
-  PetscLogDouble t0;
-  PetscFunctionBeginUser;
-  PetscCall(PetscTime(&t0));
-  PetscCall(StagePush(Stage::Setup));
-  PetscCall(SpaceCreate(dm, element, problem, level.space));
-  PetscCall(StagePop(Stage::Setup));
-  PetscCall(SpaceReleaseMesh(level.space)); // assembly, solve and prolongation need the tables only
-  PetscCall(AssembleSystem(level.space, problem, assembly, level.sys));
-  PetscCall(DMCreateGlobalVector(level.space.dm, &level.u));
-  PetscCall(VecDuplicate(level.u, &level.lower));
-  PetscCall(ContactLowerBound(level.space, problem, level.lower));
-  PetscCall(SecondsSince(PetscObjectComm((PetscObject)dm), t0, &seconds));
   PetscFunctionReturn(0);
 }
 
@@ -214,44 +169,50 @@ SolveResult::Level LevelSummary(const Space &space, const SolveResult &r, double
 }
 } // namespace
 
-PetscErrorCode NestedSolve(MeshLevels &levels, const Problem &problem, const AssemblyOptions &assembly, const Space &fine, const System &fineSys, Vec u, SolveResult &r, const SolveOptions &opts)
+PetscErrorCode NestedSolve(MeshLevels &levels, const Problem &problem, const PipelineOptions &o, MeshSolution &fine)
 {
   const PetscInt                  L = levels.Count();
-  Level                           prev;
+  MeshSolution                    prev;
   std::vector<SolveResult::Level> summary;
   AmgReuseStats                   amg;
+  double                          prolongSeconds = 0;
   PetscFunctionBeginUser;
-  PetscCheck(L >= 1, PetscObjectComm((PetscObject)u), PETSC_ERR_ARG_WRONG, "nested iteration needs at least the fine level");
-  for (PetscInt l = 0; l + 1 < L; ++l) {
-    Level        cur;
-    SolveResult  lr;
-    double       setupSeconds = 0, prolongSeconds = 0;
-    SolveOptions lo  = opts; // the user's solver settings, without the linear comparison (finest level only)
-    lo.compareLinear = false;
-    lo.initialGuess  = l > 0;
-    PetscCall(SetUpLevel(levels.dm[l], fine.element, problem, assembly, cur, setupSeconds));
-    PetscCall(DMDestroy(&levels.dm[l])); // its space holds the layout, not the mesh: the memory is free for the solves
-    if (l > 0) {
-      PetscCall(ProlongateLevel(prev, cur.space, levels.parent[l], problem, cur.u, prolongSeconds));
+  PetscCheck(L >= 1, PetscObjectComm((PetscObject)fine.u), PETSC_ERR_ARG_WRONG, "nested iteration needs at least the fine level");
+  // The coarse level l is solved from the prolongation of level l - 1 (l > 0), or from u_D.
+  const auto fromPrevious = [&](const std::vector<PetscInt> &parent) -> std::function<PetscErrorCode(MeshSolution &)> {
+    return [&](MeshSolution &cur) {
+      PetscFunctionBeginUser;
+      PetscCall(ProlongateLevel(prev, cur.space, parent, problem, cur.u, prolongSeconds));
       PetscCall(prev.Destroy());
-      std::vector<PetscInt>().swap(levels.parent[l]); // used once
-    }
-    PetscCall(Solve(cur.space, problem, cur.sys, cur.u, lr, lo));
-    summary.push_back(LevelSummary(cur.space, lr, setupSeconds, prolongSeconds));
-    amg.setups += lr.amg.setups;
-    amg.reuses += lr.amg.reuses;
+      PetscFunctionReturn(0);
+    };
+  };
+  for (PetscInt l = 0; l + 1 < L; ++l) {
+    MeshSolution    cur;
+    PipelineOptions lo  = o; // the user's solver settings, without the linear comparison (finest level only)
+    lo.solve.compareLinear = false;
+    lo.kktHint             = false;
+    lo.solve.initialGuess  = false;
+    lo.keepMesh            = false;
+    lo.withMesh            = [&](const Space &) { return DMDestroy(&levels.dm[l]); }; // the space keeps the layout, not the mesh
+    prolongSeconds         = 0;
+    PetscCall(PipelineRun(levels.dm[l], problem, lo, cur, l > 0 ? fromPrevious(levels.parent[l]) : nullptr));
+    std::vector<PetscInt>().swap(levels.parent[l]); // used once
+    summary.push_back(LevelSummary(cur.space, cur.result, cur.setupSeconds, prolongSeconds));
+    amg.setups += cur.result.amg.setups;
+    amg.reuses += cur.result.amg.reuses;
     prev = std::move(cur);
   }
-  SolveOptions fo = opts;
-  double       prolongSeconds = 0;
+  PipelineOptions fo = o;
+  prolongSeconds     = 0;
   if (L > 1) {
-    PetscCall(ProlongateLevel(prev, fine, levels.parent[L - 1], problem, u, prolongSeconds));
-    PetscCall(prev.Destroy());
+    PetscCall(fromPrevious(levels.parent[L - 1])(fine));
     std::vector<PetscInt>().swap(levels.parent[L - 1]);
-    fo.initialGuess = true;
+    fo.solve.initialGuess = true;
   }
-  PetscCall(Solve(fine, problem, fineSys, u, r, fo));
-  summary.push_back(LevelSummary(fine, r, 0, prolongSeconds)); // the caller knows the finest set-up time
+  PetscCall(PipelineSolve(problem, fo, fine));
+  SolveResult &r = fine.result;
+  summary.push_back(LevelSummary(fine.space, r, fine.setupSeconds, prolongSeconds));
   r.solveSeconds = 0;
   for (const SolveResult::Level &s : summary) r.solveSeconds += s.solveSeconds;
   r.levels = std::move(summary);

@@ -90,16 +90,14 @@ static PetscErrorCode DerivedFields(const Space &space, Vec u, DM cellDM, DM ver
   PetscCall(VecGetArray(vcnt, &vc));
   const PetscInt nb = space.Nb();
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
-    PetscReal centroid[4], mean = 0;
+    PetscReal centroid[4];
     for (PetscInt k = 0; k < nb; ++k) centroid[k] = 1.0 / nb;
-    for (PetscInt i = 0; i < nb; ++i) mean += PetscRealPart(ua[space.Dofs(c)[i]]) * space.BasisValue(c, i, centroid);
-    cm[c] = mean;
+    cm[c] = space.Value(c, ua, centroid);
     for (PetscInt k = 0; k < nb; ++k) {
-      PetscReal lambda[4] = {0, 0, 0, 0}, val = 0;
+      PetscReal lambda[4] = {0, 0, 0, 0};
       lambda[k]           = 1;
-      for (PetscInt i = 0; i < nb; ++i) val += PetscRealPart(ua[space.Dofs(c)[i]]) * space.BasisValue(c, i, lambda);
-      const PetscInt off = space.Vertex(c, k) - space.vStart;
-      vs[off] += val;
+      const PetscInt off  = space.Vertex(c, k) - space.vStart;
+      vs[off] += space.Value(c, ua, lambda);
       vc[off] += 1;
     }
   }

@@ -1,6 +1,7 @@
 #include "signorini/study.h"
 #include "signorini/options.h"
 #include "signorini/output.h"
+#include "signorini/pipeline.h"
 #include "signorini/report.h"
 
 #include <cmath>
@@ -42,25 +43,23 @@ PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, const Problem &problem
   PetscFunctionReturn(0);
 }
 
-// space -> assembly -> solve on one mesh; the vector u is created here.
-// With a profile prefix, also writes PREFIX-<element>.h5/.xmf (the solution) and PREFIX-<element>-contact.csv.
-static PetscErrorCode SolveOn(DM mesh, Element element, const Problem &problem, const AssemblyOptions &assembly, Space &space, Vec *u, SolveResult &result, double &solveSeconds, const std::string &profile = "")
+// The scene on one mesh through the pipeline, with the default solver settings. With a profile prefix,
+// also writes PREFIX-<element>.h5/.xmf (the solution) and PREFIX-<element>-contact.csv. The system is
+// freed: the rows and the reference need the space and u only.
+static PetscErrorCode SolveOn(DM mesh, Element element, const Problem &problem, const AssemblyOptions &assembly, MeshSolution &m, const std::string &profile = "")
 {
-  System         sys;
-  PetscLogDouble t0, t1;
+  PipelineOptions o;
   PetscFunctionBeginUser;
-  PetscCall(SpaceCreate(mesh, element, problem, space));
-  PetscCall(AssembleSystem(space, problem, assembly, sys));
-  PetscCall(DMCreateGlobalVector(space.dm, u));
-  PetscCall(PetscTime(&t0));
-  PetscCall(Solve(space, problem, sys, *u, result));
-  PetscCall(PetscTime(&t1));
-  solveSeconds = t1 - t0;
+  o.element  = element;
+  o.assembly = assembly;
+  o.kktHint  = false;
+  o.keepMesh = !profile.empty(); // the HDF5 output needs the mesh
+  PetscCall(PipelineRun(mesh, problem, o, m));
   if (!profile.empty()) {
-    PetscCall(WriteSolution(space, problem, sys, *u, ProfileOutput(profile, element, problem)));
-    if (problem.HasContact()) PetscCall(WriteContactProfile(space, problem, sys, *u, ProfileBase(profile, element) + "-contact.csv"));
+    PetscCall(WriteSolution(m.space, problem, m.sys, m.u, ProfileOutput(profile, element, problem)));
+    if (problem.HasContact()) PetscCall(WriteContactProfile(m.space, problem, m.sys, m.u, ProfileBase(profile, element) + "-contact.csv"));
   }
-  PetscCall(SystemDestroy(sys));
+  PetscCall(SystemDestroy(m.sys));
   PetscFunctionReturn(0);
 }
 
@@ -122,8 +121,7 @@ PetscErrorCode RunStudy(DM base, PetscInt N0, PetscReal h0, Problem &problem, co
   std::vector<std::vector<PetscInt>> parent(finest + 1);
   std::vector<double>                meshSeconds(finest + 1, 0.0);
   std::vector<StudyRow>              rows;
-  std::vector<std::unique_ptr<Space>> spaces;
-  std::vector<Vec>                   solutions;
+  std::vector<std::unique_ptr<MeshSolution>> solved; // one per row
   PetscLogDouble                     t0, t1;
   PetscFunctionBeginUser;
   if (!problem.HasExact() && o.referenceRefine == 0) SIGNORINI_INPUT_ERROR(comm, "option -reference_refine: the scene has no exact solution, so the study needs a reference (-reference_refine m > 0)");
@@ -140,63 +138,61 @@ PetscErrorCode RunStudy(DM base, PetscInt N0, PetscReal h0, Problem &problem, co
   for (Element e : o.elements) {
     for (PetscInt l = 0; l < o.levels; ++l) {
       StudyRow r;
-      Vec      u;
-      auto     space = std::make_unique<Space>();
+      auto     m     = std::make_unique<MeshSolution>();
+      const Space &space = m->space;
       PetscCall(PetscTime(&t0));
-      PetscCall(SolveOn(levels[l], e, problem, assembly, *space, &u, r.solve, r.solveSeconds, l == o.levels - 1 ? o.profiles : std::string()));
+      PetscCall(SolveOn(levels[l], e, problem, assembly, *m, l == o.levels - 1 ? o.profiles : std::string()));
       PetscCall(PetscTime(&t1));
+      r.solve        = m->result;
+      r.solveSeconds = m->result.solveSeconds;
       r.element      = ElementName(e);
       r.level        = l;
       r.N            = N0 << l;
       r.h            = h0 / (1 << l);
       r.cells        = 0;
-      PetscInt local = space->NumCells();
+      PetscInt local = space.NumCells();
       PetscCallMPI(MPI_Allreduce(&local, &r.cells, 1, MPIU_INT, MPI_SUM, comm));
-      r.dofs         = space->numGlobal;
+      r.dofs         = space.numGlobal;
       r.totalSeconds = meshSeconds[l] + (t1 - t0);
       PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &r.solveSeconds, 1, MPI_DOUBLE, MPI_MAX, comm));
       PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &r.totalSeconds, 1, MPI_DOUBLE, MPI_MAX, comm));
       double rssSum;
       PetscCall(PeakRSS(comm, &rssSum, &r.peakRSS));
       if (problem.HasExact()) {
-        PetscCall(ErrorAgainstExact(*space, problem, u, errorDegree, r.exact));
+        PetscCall(ErrorAgainstExact(space, problem, m->u, errorDegree, r.exact));
         r.hasExact = true;
       }
       rows.push_back(r);
-      spaces.push_back(std::move(space));
-      solutions.push_back(u);
+      solved.push_back(std::move(m));
     }
   }
 
   PetscInt refDofs = 0;
   if (o.referenceRefine > 0) {
-    Space       ref;
-    Vec         uref;
-    SolveResult rr;
-    double      seconds;
-    PetscCall(SolveOn(levels[finest], o.referenceElement, problem, assembly, ref, &uref, rr, seconds));
+    MeshSolution       r;
+    const Space       &ref = r.space;
+    const SolveResult &rr  = r.result;
+    PetscCall(SolveOn(levels[finest], o.referenceElement, problem, assembly, r));
     refDofs = ref.numGlobal;
-    PetscCall(PetscPrintf(comm, "reference: %s on level %d (N = %d), %d DOFs, %d Newton / %d KSP iterations, %.2f s\n", ElementName(o.referenceElement), (int)finest, (int)(N0 << finest), (int)refDofs, (int)rr.newtonIts, (int)rr.kspIts, seconds));
+    PetscCall(PetscPrintf(comm, "reference: %s on level %d (N = %d), %d DOFs, %d Newton / %d KSP iterations, %.2f s\n", ElementName(o.referenceElement), (int)finest, (int)(N0 << finest), (int)refDofs, (int)rr.newtonIts, (int)rr.kspIts, rr.solveSeconds));
     // parent maps from the reference level down to each study level, composed once per level
     std::vector<PetscInt> map(ref.NumCells());
     for (PetscInt c = 0; c < ref.NumCells(); ++c) map[c] = c;
     for (PetscInt l = finest; l >= 0; --l) {
       for (size_t i = 0; i < rows.size(); ++i)
         if (rows[i].level == l) {
-          PetscCall(ErrorAgainstReference(*spaces[i], solutions[i], ref, uref, map, rows[i].reference));
+          PetscCall(ErrorAgainstReference(solved[i]->space, solved[i]->u, ref, r.u, map, rows[i].reference));
           rows[i].hasReference = true;
         }
       if (l > 0)
         for (PetscInt &c : map) c = parent[l][c];
     }
-    PetscCall(VecDestroy(&uref));
-    PetscCall(SpaceDestroy(ref));
+    PetscCall(r.Destroy());
   }
   PetscCall(PrintTable(comm, rows));
   if (!o.file.empty()) PetscCall(WriteJSON(comm, o.file, problem.scene, o, N0 << finest, refDofs, rows));
 
-  for (Vec &u : solutions) PetscCall(VecDestroy(&u));
-  for (auto &s : spaces) PetscCall(SpaceDestroy(*s));
+  for (auto &m : solved) PetscCall(m->Destroy());
   for (DM &dm : levels) PetscCall(DMDestroy(&dm));
   PetscFunctionReturn(0);
 }

@@ -7,8 +7,8 @@
 // tolerance as without nested iteration.
 #pragma once
 
-#include "signorini/contact.h"
 #include "signorini/mesh.h"
+#include "signorini/pipeline.h"
 
 namespace signorini {
 
@@ -32,14 +32,13 @@ PetscErrorCode Prolongate(const Space &coarse, Vec uH, const Space &fine, const 
 // the obstacle for CR (its restriction to a contact face is only zero at the face's centroid).
 PetscErrorCode TransferActiveSet(const Space &coarse, Vec uH, Vec lowerH, const Space &fine, const std::vector<PetscInt> &parent, Vec lowerh, Vec uh);
 
-// The whole contact solve with nested iteration: levels.dm[0 .. Count()-2] are solved (each with its own
-// space and system, created and destroyed here) and prolongated, and the finest level, whose space and
-// system the caller owns, is solved from the last prolongation into u. result receives the finest solve
-// plus one entry per level in result.levels (the finest level's set-up time is the caller's to fill) and
-// the time of all solves together in result.solveSeconds. Each coarse mesh of `levels` is destroyed
-// (its entry set to NULL) once its level's space and system are built (SpaceReleaseMesh), and each parent
-// map once it has been used, so that the solves, and above all the finest one, the peak of the run's
-// memory, do not hold them.
-PetscErrorCode NestedSolve(MeshLevels &levels, const Problem &problem, const AssemblyOptions &assembly, const Space &fine, const System &fineSys, Vec u, SolveResult &result, const SolveOptions &opts);
-
+// The whole contact solve with nested iteration: levels.dm[0 .. Count()-2] are set up and solved through
+// the pipeline (pipeline.h), each from the prolongation of the one before, and the finest level, which
+// the caller has set up (PipelineSetUp), is solved from the last prolongation. The coarse levels use the
+// options o without the linear comparison and the KKT warning. fine.result receives the finest solve plus
+// one entry per level in result.levels and the time of all solves together in result.solveSeconds. Each
+// coarse mesh of `levels` is destroyed (its entry set to NULL) once its level's space is built, and each
+// parent map once it has been used, so that the solves, and above all the finest one, the peak of the
+// run's memory, do not hold them.
+PetscErrorCode NestedSolve(MeshLevels &levels, const Problem &problem, const PipelineOptions &o, MeshSolution &fine);
 } // namespace signorini

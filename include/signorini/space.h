@@ -37,6 +37,19 @@ inline void SimplexPoint(PetscInt dim, const PetscReal *X, const PetscReal *lamb
   }
 }
 
+// lambda: the barycentric coordinates of x in the simplex of geometry g whose first vertex is X0
+// (lambda_k = grad lambda_k . (x - X0) for k >= 1). Outside the simplex some lambda_k are negative.
+inline void Barycentric(PetscInt dim, const CellGeometry &g, const PetscReal *X0, const PetscReal *x, PetscReal *lambda)
+{
+  PetscReal sum = 0;
+  for (PetscInt k = 1; k <= dim; ++k) {
+    lambda[k] = 0;
+    for (PetscInt d = 0; d < dim; ++d) lambda[k] += g.gradLambda[k][d] * (x[d] - X0[d]);
+    sum += lambda[k];
+  }
+  lambda[0] = 1 - sum;
+}
+
 // A face on a named boundary part, seen from its only cell.
 struct BoundaryFace {
   PetscInt cell;     // local cell index (c - cStart)
@@ -94,6 +107,23 @@ struct Space {
   {
     const PetscReal b = element == Element::P1 ? 1.0 : -(PetscReal)dim;
     for (PetscInt d = 0; d < dim; ++d) grad[d] = b * g.gradLambda[i][d];
+  }
+  // The discrete function u_h = sum_i a_i phi_i on cell c, a a local vector's array: its value at barycentric
+  // coordinates lambda, and its gradient (constant on the cell; g the cell's geometry).
+  PetscReal Value(PetscInt c, const PetscScalar *a, const PetscReal *lambda) const
+  {
+    PetscReal v = 0;
+    for (PetscInt i = 0; i < Nb(); ++i) v += PetscRealPart(a[Dofs(c)[i]]) * BasisValue(c, i, lambda);
+    return v;
+  }
+  void Grad(PetscInt c, const PetscScalar *a, const CellGeometry &g, PetscReal *grad) const
+  {
+    PetscReal gi[3];
+    for (PetscInt d = 0; d < dim; ++d) grad[d] = 0;
+    for (PetscInt i = 0; i < Nb(); ++i) {
+      BasisGrad(c, i, g, gi);
+      for (PetscInt d = 0; d < dim; ++d) grad[d] += PetscRealPart(a[Dofs(c)[i]]) * gi[d];
+    }
   }
   // Physical point of barycentric coordinates lambda in cell c.
   void Point(PetscInt c, const PetscReal *lambda, PetscReal *x) const;

@@ -1,0 +1,43 @@
+// The scene on one mesh: space -> assembly -> solve -> checks. Every run goes through it, whether it
+// solves one mesh (main), a sequence of nested levels (nested.h) or a convergence study (study.h); those
+// differ only in which meshes they hand it and what they carry from one mesh to the next (an initial
+// guess for the solve).
+#pragma once
+
+#include "signorini/contact.h"
+
+#include <functional>
+
+namespace signorini {
+
+// The discrete problem on one mesh and its solution. Destroy frees all of it.
+struct MeshSolution {
+  Space       space;
+  System      sys;
+  Vec         u = nullptr; // global vector of the space, named "u": the initial guess, then the solution
+  SolveResult result;
+  double      setupSeconds = 0; // space and assembly (withMesh excluded), max over ranks
+  PetscErrorCode Destroy();
+};
+
+struct PipelineOptions {
+  Element         element = Element::CR;
+  AssemblyOptions assembly;
+  SolveOptions    solve;          // solve.initialGuess: u holds an initial guess when Solve is called
+  bool            kktHint = true; // print the KKT warning (kkthint.h) after the solve
+  bool            keepMesh = false; // the space keeps its mesh (HDF5 output after the solve)
+  // Called once the space is built, while it still holds the mesh (e.g. to begin the output file), and
+  // before the assembly: it may drop the caller's references to the mesh, so that without keepMesh the
+  // mesh is freed before the assembly and the solve need the memory. Its time is not set-up time.
+  std::function<PetscErrorCode(const Space &)> withMesh;
+};
+
+// Space (Setup stage) and system (Assemble stage) of the scene on `mesh`, and the vector u (zero).
+PetscErrorCode PipelineSetUp(DM mesh, const Problem &problem, const PipelineOptions &o, MeshSolution &m);
+// The solve on m's mesh (from u with o.solve.initialGuess, else from u_D), then the checks of the answer.
+PetscErrorCode PipelineSolve(const Problem &problem, const PipelineOptions &o, MeshSolution &m);
+// Both. `guess`, if given, fills m.u with an initial guess between the set-up and the solve (and the
+// solve then starts from it).
+PetscErrorCode PipelineRun(DM mesh, const Problem &problem, const PipelineOptions &o, MeshSolution &m, const std::function<PetscErrorCode(MeshSolution &)> &guess = nullptr);
+
+} // namespace signorini
