@@ -119,14 +119,6 @@ std::string ReadIntList(const std::string &option, const std::string &text, Pets
   });
 }
 
-PetscErrorCode ParseIntList(MPI_Comm comm, const std::string &option, const std::string &text, std::vector<PetscInt> &values, PetscInt min, PetscInt max)
-{
-  PetscFunctionBeginUser;
-  const std::string error = ReadIntList(option, text, min, max, values);
-  if (!error.empty()) SIGNORINI_INPUT_ERROR(comm, "%s", error.c_str());
-  PetscFunctionReturn(0);
-}
-
 } // namespace signorini
 
 namespace signorini {

@@ -33,8 +33,6 @@ std::string ReadInt(const std::string &option, const std::string &text, PetscInt
 std::string ReadList(const std::string &option, const std::string &text, const std::function<std::string(const std::string &)> &item);
 // ReadInt for each entry of a comma-separated list ("1,3,4"; blank text gives an empty list).
 std::string ReadIntList(const std::string &option, const std::string &text, PetscInt min, PetscInt max, std::vector<PetscInt> &values);
-// ReadIntList raising the message as an input error.
-PetscErrorCode ParseIntList(MPI_Comm comm, const std::string &option, const std::string &text, std::vector<PetscInt> &values, PetscInt min = PETSC_MIN_INT, PetscInt max = PETSC_MAX_INT);
 
 // Collective: the ownership ranges of a distributed index set, ranges[p] .. ranges[p + 1] on rank p, from
 // each rank's count of owned indices.
