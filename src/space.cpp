@@ -338,6 +338,82 @@ static PetscErrorCode CheckObstacleMeetsDirichlet(const Space &s, const Problem 
   PetscFunctionReturn(0);
 }
 
+// Index of face f in the cone of cell c (the cell vertex opposite it).
+static PetscErrorCode ConeIndex(DM dm, PetscInt c, PetscInt f, PetscInt nb, PetscInt *k)
+{
+  const PetscInt *cone;
+  PetscFunctionBeginUser;
+  PetscCall(DMPlexGetCone(dm, c, &cone));
+  for (*k = 0; *k < nb && cone[*k] != f; ++*k) {}
+  PetscCheck(*k < nb, PETSC_COMM_SELF, PETSC_ERR_PLIB, "face %d is not in the cone of its support cell %d", (int)f, (int)c);
+  PetscFunctionReturn(0);
+}
+
+// The face tables (see InteriorFace): a face with two local cells is interior; one with one local cell is
+// shared with another rank if the point SF holds it (a leaf here, or a root that some rank points at),
+// and on the boundary of the domain otherwise.
+static PetscErrorCode BuildFaceTables(Space &s, PetscInt fStart, PetscInt fEnd)
+{
+  PetscSF            pointSF;
+  PetscInt           pStart, pEnd, nroots, nleaves;
+  const PetscInt    *leaves, *degree = nullptr;
+  const PetscSFNode *remotes;
+  PetscFunctionBeginUser;
+  PetscCall(DMPlexGetChart(s.mesh, &pStart, &pEnd));
+  PetscCall(DMGetPointSF(s.mesh, &pointSF));
+  PetscCall(PetscSFGetGraph(pointSF, &nroots, &nleaves, &leaves, &remotes));
+  std::vector<PetscInt> leafOf(pEnd - pStart, -1); // position in the point SF's leaves
+  if (nroots >= 0) {
+    for (PetscInt i = 0; i < nleaves; ++i) leafOf[(leaves ? leaves[i] : i) - pStart] = i;
+    PetscCall(PetscSFComputeDegreeBegin(pointSF, &degree));
+    PetscCall(PetscSFComputeDegreeEnd(pointSF, &degree));
+  }
+  std::vector<PetscInt> entry(pEnd - pStart, -1); // owned shared face -> its index in sharedFaces
+  for (PetscInt f = fStart; f < fEnd; ++f) {
+    const PetscInt *supp;
+    PetscInt        nsupp;
+    PetscCall(DMPlexGetSupportSize(s.mesh, f, &nsupp));
+    PetscCall(DMPlexGetSupport(s.mesh, f, &supp));
+    if (nsupp == 2) {
+      InteriorFace face;
+      for (PetscInt j = 0; j < 2; ++j) {
+        face.cell[j] = supp[j] - s.cStart;
+        PetscCall(ConeIndex(s.mesh, supp[j], f, s.Nb(), &face.local[j]));
+      }
+      s.interiorFaces.push_back(face);
+      continue;
+    }
+    const bool leaf = leafOf[f - pStart] >= 0, root = degree && degree[f - pStart] > 0;
+    if (nsupp != 1 || (!leaf && !root)) continue;
+    SharedFace face{supp[0] - s.cStart, 0, !leaf};
+    PetscCall(ConeIndex(s.mesh, supp[0], f, s.Nb(), &face.local));
+    if (face.owned) entry[f - pStart] = (PetscInt)s.sharedFaces.size();
+    s.sharedFaces.push_back(face);
+  }
+  // Each leaf learns the index of its face in the owner's sharedFaces.
+  std::vector<PetscInt> remoteEntry(entry);
+  if (nroots >= 0) {
+    PetscCall(PetscSFBcastBegin(pointSF, MPIU_INT, entry.data(), remoteEntry.data(), MPI_REPLACE));
+    PetscCall(PetscSFBcastEnd(pointSF, MPIU_INT, entry.data(), remoteEntry.data(), MPI_REPLACE));
+  }
+  std::vector<PetscInt>    local;
+  std::vector<PetscSFNode> remote;
+  PetscInt                 i = 0;
+  for (PetscInt f = fStart; f < fEnd; ++f) {
+    if (leafOf[f - pStart] < 0 || i >= (PetscInt)s.sharedFaces.size()) continue;
+    PetscInt nsupp;
+    PetscCall(DMPlexGetSupportSize(s.mesh, f, &nsupp));
+    if (nsupp != 1) continue;
+    // sharedFaces lists the faces in point order, so the entry of f is the next non-owned one
+    while (s.sharedFaces[i].owned) ++i;
+    local.push_back(i++);
+    remote.push_back({remotes[leafOf[f - pStart]].rank, remoteEntry[f - pStart]});
+  }
+  PetscCall(PetscSFCreate(PetscObjectComm((PetscObject)s.mesh), &s.sharedFaceSF));
+  PetscCall(PetscSFSetGraph(s.sharedFaceSF, (PetscInt)s.sharedFaces.size(), (PetscInt)local.size(), local.data(), PETSC_COPY_VALUES, remote.data(), PETSC_COPY_VALUES));
+  PetscFunctionReturn(0);
+}
+
 // -log_view lists the steps of SpaceCreate under the Setup stage.
 static PetscErrorCode SpaceEvents(PetscLogEvent ev[4])
 {
@@ -351,7 +427,7 @@ static PetscErrorCode SpaceEvents(PetscLogEvent ev[4])
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Space &s)
+PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Space &s, bool interiorFaces)
 {
   PetscInt      vStart, vEnd, fStart, fEnd;
   PetscLogEvent ev[4];
@@ -375,6 +451,7 @@ PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Spa
   PetscCall(PetscLogEventEnd(ev[1], 0, 0, 0, 0));
   PetscCall(PetscLogEventBegin(ev[2], 0, 0, 0, 0));
   PetscCall(CollectBoundary(s, problem));
+  if (interiorFaces) PetscCall(BuildFaceTables(s, fStart, fEnd));
   PetscCall(PetscLogEventEnd(ev[2], 0, 0, 0, 0));
   PetscCall(PetscLogEventBegin(ev[3], 0, 0, 0, 0));
   PetscCall(ClassifyDofs(s, problem));
@@ -406,6 +483,7 @@ PetscErrorCode SpaceDestroy(Space &s)
   PetscCall(DMDestroy(&s.mesh));
   PetscCall(DMDestroy(&s.dm));
   PetscCall(ISLocalToGlobalMappingDestroy(&s.ltog));
+  PetscCall(PetscSFDestroy(&s.sharedFaceSF));
   s = Space();
   PetscFunctionReturn(0);
 }

@@ -59,6 +59,25 @@ struct BoundaryFace {
   PetscInt face;     // the face's mesh point
 };
 
+// A face between two cells, for face-based post-processing (jumps, fluxes) after the mesh is freed. The
+// tables are built only when SpaceCreate is asked for them (interiorFaces): most runs need none of it.
+// Interior faces with both cells on this rank are listed once, with both sides. A face on the boundary
+// between two ranks' cells (the mesh has no overlap: each rank holds one of its cells) is listed on both
+// ranks as a SharedFace with its local side only, and sharedFaceSF joins the two entries: its roots are
+// the SharedFace entries (index into sharedFaces) of the rank that owns the face in the point SF, its
+// leaves those of the other rank, each pointing at the owner's entry. PetscSFBcast over it hands each
+// shared face's per-face data (e.g. the owner's side of a jump) to the other rank, PetscSFReduce the
+// other way; counting faces, the owned entries count each shared face once.
+struct InteriorFace {
+  PetscInt cell[2];  // the two local cells (c - cStart)
+  PetscInt local[2]; // index (0..dim) of the face in each cell's cone: the cell vertex opposite it (CR: its DOF)
+};
+struct SharedFace {
+  PetscInt cell;  // the local cell (c - cStart)
+  PetscInt local; // index of the face in that cell's cone
+  bool     owned; // this rank owns the face (a root of sharedFaceSF)
+};
+
 enum DofKind : char { kFree = 0, kDirichlet = 1, kContact = 2 };
 
 struct Space {
@@ -77,6 +96,10 @@ struct Space {
   std::vector<PetscInt>     dirichletOwned, contactOwned; // indices into the owned part of a global Vec
   std::vector<BoundaryFace> boundary;  // faces of all named parts on this rank
   ISLocalToGlobalMapping    ltog = nullptr; // global index of every local DOF (ghosts included)
+  // Only with SpaceCreate(..., interiorFaces = true); see InteriorFace above.
+  std::vector<InteriorFace> interiorFaces;
+  std::vector<SharedFace>   sharedFaces;
+  PetscSF                   sharedFaceSF = nullptr;
 
   // The vertex coordinates of a cell, (dim+1)*dim values; converts to a pointer for the functions that
   // take one (keep the object, not the pointer, beyond one expression).
@@ -158,8 +181,9 @@ std::vector<PetscReal> DofPoints(const Space &space);
 PetscErrorCode ElementFromCommandLine(MPI_Comm comm, Element &e);
 // Builds the section, cell tables and DOF classification. Checks that every named part exists on the mesh
 // and consists of boundary faces, that no face is in two named parts, that the cells are not degenerate,
-// and that psi <= u_D where Gamma_D and Gamma_C meet (otherwise no u in H^1 satisfies both).
-PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Space &space);
+// and that psi <= u_D where Gamma_D and Gamma_C meet (otherwise no u in H^1 satisfies both). With
+// interiorFaces, also the face tables (interiorFaces, sharedFaces, sharedFaceSF).
+PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Space &space, bool interiorFaces = false);
 PetscErrorCode SpaceDestroy(Space &space);
 // Drops the space's mesh clone, so that once the caller drops its own references the DMPlex is freed.
 // Everything but the HDF5 output works on the tables and the layout (assembly, solve, KKT, energy, errors,
