@@ -124,7 +124,9 @@ static PetscErrorCode Run(MPI_Comm comm)
     PetscReal h0;
     if (N0 > 0) h0 = (s.mesh.upper[0] - s.mesh.lower[0]) / N0;
     else PetscCall(MeshSize(mesh, &h0));
-    PetscCall(RunStudy(mesh, N0, h0, s.problem, s.assembly, s.errorDegree, s.study));
+    ConvergenceStudy study(mesh, N0, h0, s.problem, s.assembly, s.errorDegree, s.study);
+    PetscCall(SolveMeshes(s.problem, study));
+    PetscCall(study.Finish());
     PetscCall(DMDestroy(&mesh));
     PetscFunctionReturn(0);
   }
