@@ -21,6 +21,7 @@ static const char help[] =
 #include "signorini/space.h"
 #include "signorini/stages.h"
 #include "signorini/startup.h"
+#include "signorini/strategy.h"
 #include "signorini/study.h"
 
 #include <cstdio>
@@ -66,6 +67,27 @@ static PetscErrorCode ReadSettings(MPI_Comm comm, Settings &s, bool help)
   PetscFunctionReturn(0);
 }
 
+// The scene on every mesh the strategy hands out, each through the pipeline, with what the strategy
+// carries from one mesh to the next.
+static PetscErrorCode SolveMeshes(const Problem &problem, MeshStrategy &strategy)
+{
+  Step step;
+  bool more;
+  PetscFunctionBeginUser;
+  PetscCall(strategy.Next(step, more));
+  while (more) {
+    MeshSolution m;
+    bool         carried;
+    PetscCall(PipelineSetUp(step.mesh, problem, step.options, m));
+    PetscCall(strategy.Carry(m, carried));
+    if (carried) step.options.solve.initialGuess = true;
+    PetscCall(PipelineSolve(problem, step.options, m));
+    PetscCall(strategy.Solved(std::move(m)));
+    PetscCall(strategy.Next(step, more));
+  }
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode Run(MPI_Comm comm)
 {
   Settings       s;
@@ -102,7 +124,9 @@ static PetscErrorCode Run(MPI_Comm comm)
     PetscReal h0;
     if (N0 > 0) h0 = (s.mesh.upper[0] - s.mesh.lower[0]) / N0;
     else PetscCall(MeshSize(mesh, &h0));
-    PetscCall(RunStudy(mesh, N0, h0, s.problem, s.assembly, s.errorDegree, s.study));
+    ConvergenceStudy study(mesh, N0, h0, s.problem, s.assembly, s.errorDegree, s.study);
+    PetscCall(SolveMeshes(s.problem, study));
+    PetscCall(study.Finish());
     PetscCall(DMDestroy(&mesh));
     PetscFunctionReturn(0);
   }
@@ -119,12 +143,19 @@ static PetscErrorCode Run(MPI_Comm comm)
     if (nested) PetscCall(DMDestroy(&levels.dm.back()));
     PetscFunctionReturn(0);
   };
+  // One mesh, or the refinement levels coarse to fine with each solution carried to the next.
   MeshSolution fine;
-  PetscCall(PipelineSetUp(mesh, s.problem, po, fine));
+  if (nested) {
+    NestedIteration strategy(levels, s.problem, po);
+    PetscCall(SolveMeshes(s.problem, strategy));
+    fine = std::move(strategy.finest);
+  } else {
+    SingleRun strategy(mesh, po);
+    PetscCall(SolveMeshes(s.problem, strategy));
+    fine = std::move(strategy.finest);
+  }
   Space &space = fine.space;
   Vec    u     = fine.u;
-  if (nested) PetscCall(NestedSolve(levels, s.problem, po, fine));
-  else PetscCall(PipelineSolve(s.problem, po, fine));
   PetscCall(MeshLevelsDestroy(levels));
   report.solve = fine.result;
   if (s.problem.HasExact()) PetscCall(ErrorAgainstExact(space, s.problem, u, s.errorDegree, report.error));

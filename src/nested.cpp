@@ -169,55 +169,54 @@ SolveResult::Level LevelSummary(const Space &space, const SolveResult &r, double
 }
 } // namespace
 
-PetscErrorCode NestedSolve(MeshLevels &levels, const Problem &problem, const PipelineOptions &o, MeshSolution &fine)
+PetscErrorCode NestedIteration::Next(Step &step, bool &more)
 {
-  const PetscInt                  L = levels.Count();
-  MeshSolution                    prev;
-  std::vector<SolveResult::Level> summary;
-  AmgReuseStats                   amg;
-  double                          prolongSeconds = 0;
   PetscFunctionBeginUser;
-  PetscCheck(L >= 1, PetscObjectComm((PetscObject)fine.u), PETSC_ERR_ARG_WRONG, "nested iteration needs at least the fine level");
-  // The coarse level l is solved from the prolongation of level l - 1 (l > 0), or from u_D.
-  const auto fromPrevious = [&](const std::vector<PetscInt> &parent) -> std::function<PetscErrorCode(MeshSolution &)> {
-    return [&](MeshSolution &cur) {
-      PetscFunctionBeginUser;
-      PetscCall(ProlongateLevel(prev, cur.space, parent, problem, cur.u, prolongSeconds));
-      PetscCall(prev.Destroy());
-      PetscFunctionReturn(0);
-    };
-  };
-  for (PetscInt l = 0; l + 1 < L; ++l) {
-    MeshSolution    cur;
-    PipelineOptions lo  = o; // the user's solver settings, without the linear comparison (finest level only)
+  more = ++level_ < levels_.Count();
+  if (!more) PetscFunctionReturn(0);
+  prolongSeconds_ = 0;
+  step.mesh       = levels_.dm[level_];
+  step.options    = fine_;
+  if (level_ + 1 < levels_.Count()) {
+    PipelineOptions &lo = step.options; // the user's solver settings, without the linear comparison (finest level only)
     lo.solve.compareLinear = false;
     lo.kktHint             = false;
     lo.solve.initialGuess  = false;
     lo.keepMesh            = false;
-    lo.withMesh            = [&](const Space &) { return DMDestroy(&levels.dm[l]); }; // the space keeps the layout, not the mesh
-    prolongSeconds         = 0;
-    PetscCall(PipelineRun(levels.dm[l], problem, lo, cur, l > 0 ? fromPrevious(levels.parent[l]) : nullptr));
-    std::vector<PetscInt>().swap(levels.parent[l]); // used once
-    summary.push_back(LevelSummary(cur.space, cur.result, cur.setupSeconds, prolongSeconds));
-    amg.setups += cur.result.amg.setups;
-    amg.reuses += cur.result.amg.reuses;
-    prev = std::move(cur);
+    lo.withMesh            = [this, l = level_](const Space &) { return DMDestroy(&levels_.dm[l]); }; // the space keeps the layout, not the mesh
   }
-  PipelineOptions fo = o;
-  prolongSeconds     = 0;
-  if (L > 1) {
-    PetscCall(fromPrevious(levels.parent[L - 1])(fine));
-    std::vector<PetscInt>().swap(levels.parent[L - 1]);
-    fo.solve.initialGuess = true;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode NestedIteration::Carry(MeshSolution &cur, bool &carried)
+{
+  PetscFunctionBeginUser;
+  carried = level_ > 0;
+  if (!carried) PetscFunctionReturn(0);
+  PetscCall(ProlongateLevel(prev_, cur.space, levels_.parent[level_], problem_, cur.u, prolongSeconds_));
+  PetscCall(prev_.Destroy());
+  std::vector<PetscInt>().swap(levels_.parent[level_]); // used once
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode NestedIteration::Solved(MeshSolution &&m)
+{
+  PetscFunctionBeginUser;
+  summary_.push_back(LevelSummary(m.space, m.result, m.setupSeconds, prolongSeconds_));
+  if (level_ + 1 < levels_.Count()) {
+    amg_.setups += m.result.amg.setups;
+    amg_.reuses += m.result.amg.reuses;
+    prev_ = std::move(m);
+    PetscCall(SystemDestroy(prev_.sys)); // the prolongation needs the space and u only
+    PetscFunctionReturn(0);
   }
-  PetscCall(PipelineSolve(problem, fo, fine));
-  SolveResult &r = fine.result;
-  summary.push_back(LevelSummary(fine.space, r, fine.setupSeconds, prolongSeconds));
+  finest         = std::move(m);
+  SolveResult &r = finest.result;
   r.solveSeconds = 0;
-  for (const SolveResult::Level &s : summary) r.solveSeconds += s.solveSeconds;
-  r.levels = std::move(summary);
-  r.amg.setups += amg.setups;
-  r.amg.reuses += amg.reuses;
+  for (const SolveResult::Level &s : summary_) r.solveSeconds += s.solveSeconds;
+  r.levels = std::move(summary_);
+  r.amg.setups += amg_.setups;
+  r.amg.reuses += amg_.reuses;
   PetscFunctionReturn(0);
 }
 

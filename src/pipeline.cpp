@@ -48,19 +48,4 @@ PetscErrorCode PipelineSolve(const Problem &problem, const PipelineOptions &o, M
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode PipelineRun(DM mesh, const Problem &problem, const PipelineOptions &o, MeshSolution &m, const std::function<PetscErrorCode(MeshSolution &)> &guess)
-{
-  PetscFunctionBeginUser;
-  PetscCall(PipelineSetUp(mesh, problem, o, m));
-  if (!guess) {
-    PetscCall(PipelineSolve(problem, o, m));
-    PetscFunctionReturn(0);
-  }
-  PipelineOptions go    = o;
-  go.solve.initialGuess = true;
-  PetscCall(guess(m));
-  PetscCall(PipelineSolve(problem, go, m));
-  PetscFunctionReturn(0);
-}
-
 } // namespace signorini

@@ -5,7 +5,6 @@
 #include "signorini/report.h"
 
 #include <cmath>
-#include <memory>
 #include <sstream>
 
 namespace signorini {
@@ -36,30 +35,10 @@ PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, const Problem &problem
   }
   if (!o.file.empty()) PetscCall(FileClaim(comm, "-study_output", o.file));
   if (!o.profiles.empty())
-    for (Element e : o.elements) { // the files SolveOn writes on the finest level
+    for (Element e : o.elements) { // the files the finest level writes (ConvergenceStudy::Row)
       PetscCall(OutputClaim(comm, "-study_profiles", ProfileOutput(o.profiles, e, problem)));
       if (problem.HasContact()) PetscCall(FileClaim(comm, "-study_profiles", ProfileBase(o.profiles, e) + "-contact.csv"));
     }
-  PetscFunctionReturn(0);
-}
-
-// The scene on one mesh through the pipeline, with the default solver settings. With a profile prefix,
-// also writes PREFIX-<element>.h5/.xmf (the solution) and PREFIX-<element>-contact.csv. The system is
-// freed: the rows and the reference need the space and u only.
-static PetscErrorCode SolveOn(DM mesh, Element element, const Problem &problem, const AssemblyOptions &assembly, MeshSolution &m, const std::string &profile = "")
-{
-  PipelineOptions o;
-  PetscFunctionBeginUser;
-  o.element  = element;
-  o.assembly = assembly;
-  o.kktHint  = false;
-  o.keepMesh = !profile.empty(); // the HDF5 output needs the mesh
-  PetscCall(PipelineRun(mesh, problem, o, m));
-  if (!profile.empty()) {
-    PetscCall(WriteSolution(m.space, problem, m.sys, m.u, ProfileOutput(profile, element, problem)));
-    if (problem.HasContact()) PetscCall(WriteContactProfile(m.space, problem, m.sys, m.u, ProfileBase(profile, element) + "-contact.csv"));
-  }
-  PetscCall(SystemDestroy(m.sys));
   PetscFunctionReturn(0);
 }
 
@@ -113,87 +92,131 @@ static PetscErrorCode WriteJSON(MPI_Comm comm, const std::string &file, const st
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode RunStudy(DM base, PetscInt N0, PetscReal h0, Problem &problem, const AssemblyOptions &assembly, PetscInt errorDegree, const StudyOptions &o)
+PetscErrorCode ConvergenceStudy::Refine()
 {
-  MPI_Comm                           comm = PetscObjectComm((PetscObject)base);
-  const PetscInt                     finest = o.levels - 1 + o.referenceRefine;
-  std::vector<DM>                    levels(finest + 1, nullptr);
-  std::vector<std::vector<PetscInt>> parent(finest + 1);
-  std::vector<double>                meshSeconds(finest + 1, 0.0);
-  std::vector<StudyRow>              rows;
-  std::vector<std::unique_ptr<MeshSolution>> solved; // one per row
-  PetscLogDouble                     t0, t1;
+  MPI_Comm       comm = PetscObjectComm((PetscObject)base_);
+  PetscLogDouble t0, t1;
   PetscFunctionBeginUser;
-  if (!problem.HasExact() && o.referenceRefine == 0) SIGNORINI_INPUT_ERROR(comm, "option -reference_refine: the scene has no exact solution, so the study needs a reference (-reference_refine m > 0)");
-  PetscCall(PetscObjectReference((PetscObject)base));
-  levels[0] = base;
-  for (PetscInt l = 1; l <= finest; ++l) {
+  if (!problem_.HasExact() && o_.referenceRefine == 0) SIGNORINI_INPUT_ERROR(comm, "option -reference_refine: the scene has no exact solution, so the study needs a reference (-reference_refine m > 0)");
+  levels_.assign(Finest() + 1, nullptr);
+  parent_.assign(Finest() + 1, {});
+  meshSeconds_.assign(Finest() + 1, 0.0);
+  PetscCall(PetscObjectReference((PetscObject)base_));
+  levels_[0] = base_;
+  for (PetscInt l = 1; l <= Finest(); ++l) {
     PetscCall(PetscTime(&t0));
-    PetscCall(MeshRefine(levels[l - 1], &levels[l], &parent[l]));
+    PetscCall(MeshRefine(levels_[l - 1], &levels_[l], &parent_[l]));
     PetscCall(PetscTime(&t1));
-    meshSeconds[l] = meshSeconds[l - 1] + (t1 - t0);
+    meshSeconds_[l] = meshSeconds_[l - 1] + (t1 - t0);
   }
+  PetscFunctionReturn(0);
+}
 
-  // Coarse solves first, so each row's peak memory is not the reference's.
-  for (Element e : o.elements) {
-    for (PetscInt l = 0; l < o.levels; ++l) {
-      StudyRow r;
-      auto     m     = std::make_unique<MeshSolution>();
-      const Space &space = m->space;
-      PetscCall(PetscTime(&t0));
-      PetscCall(SolveOn(levels[l], e, problem, assembly, *m, l == o.levels - 1 ? o.profiles : std::string()));
-      PetscCall(PetscTime(&t1));
-      r.solve        = m->result;
-      r.solveSeconds = m->result.solveSeconds;
-      r.element      = ElementName(e);
-      r.level        = l;
-      r.N            = N0 << l;
-      r.h            = h0 / (1 << l);
-      r.cells        = 0;
-      PetscInt local = space.NumCells();
-      PetscCallMPI(MPI_Allreduce(&local, &r.cells, 1, MPIU_INT, MPI_SUM, comm));
-      r.dofs         = space.numGlobal;
-      r.totalSeconds = meshSeconds[l] + (t1 - t0);
-      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &r.solveSeconds, 1, MPI_DOUBLE, MPI_MAX, comm));
-      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &r.totalSeconds, 1, MPI_DOUBLE, MPI_MAX, comm));
-      double rssSum;
-      PetscCall(PeakRSS(comm, &rssSum, &r.peakRSS));
-      if (problem.HasExact()) {
-        PetscCall(ErrorAgainstExact(space, problem, m->u, errorDegree, r.exact));
-        r.hasExact = true;
+// Each solve with the default solver settings and without the KKT warning; the finest level of each
+// element keeps its mesh when its profile is written (the HDF5 output needs it).
+PetscErrorCode ConvergenceStudy::Next(Step &step, bool &more)
+{
+  PetscFunctionBeginUser;
+  if (step_ < 0) PetscCall(Refine());
+  ++step_;
+  more = step_ < NumRows() || (step_ == NumRows() && o_.referenceRefine > 0);
+  if (!more) PetscFunctionReturn(0);
+  const bool reference = step_ == NumRows();
+  const PetscInt level = reference ? Finest() : step_ % o_.levels;
+  step                  = Step();
+  step.mesh             = levels_[level];
+  step.options.element  = reference ? o_.referenceElement : o_.elements[step_ / o_.levels];
+  step.options.assembly = assembly_;
+  step.options.kktHint  = false;
+  step.options.keepMesh = !reference && level == o_.levels - 1 && !o_.profiles.empty();
+  PetscCall(PetscTime(&stepStart_));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ConvergenceStudy::Solved(MeshSolution &&m)
+{
+  PetscFunctionBeginUser;
+  if (step_ < NumRows()) PetscCall(Row(std::move(m)));
+  else PetscCall(Reference(m));
+  PetscFunctionReturn(0);
+}
+
+// The row of the solution just solved, which is kept (its space and u) for the reference. With a
+// profile prefix, the finest level also writes PREFIX-<element>.h5/.xmf (the solution) and
+// PREFIX-<element>-contact.csv.
+PetscErrorCode ConvergenceStudy::Row(MeshSolution &&m)
+{
+  MPI_Comm       comm = PetscObjectComm((PetscObject)m.u);
+  const PetscInt l    = step_ % o_.levels;
+  const Element  e    = o_.elements[step_ / o_.levels];
+  StudyRow       r;
+  PetscLogDouble t1;
+  PetscFunctionBeginUser;
+  if (l == o_.levels - 1 && !o_.profiles.empty()) {
+    PetscCall(WriteSolution(m.space, problem_, m.sys, m.u, ProfileOutput(o_.profiles, e, problem_)));
+    if (problem_.HasContact()) PetscCall(WriteContactProfile(m.space, problem_, m.sys, m.u, ProfileBase(o_.profiles, e) + "-contact.csv"));
+  }
+  PetscCall(SystemDestroy(m.sys)); // the rows and the reference need the space and u only
+  PetscCall(PetscTime(&t1));
+  r.solve        = m.result;
+  r.solveSeconds = m.result.solveSeconds;
+  r.element      = ElementName(e);
+  r.level        = l;
+  r.N            = N0_ << l;
+  r.h            = h0_ / (1 << l);
+  r.cells        = 0;
+  PetscInt local = m.space.NumCells();
+  PetscCallMPI(MPI_Allreduce(&local, &r.cells, 1, MPIU_INT, MPI_SUM, comm));
+  r.dofs         = m.space.numGlobal;
+  r.totalSeconds = meshSeconds_[l] + (t1 - stepStart_);
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &r.solveSeconds, 1, MPI_DOUBLE, MPI_MAX, comm));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &r.totalSeconds, 1, MPI_DOUBLE, MPI_MAX, comm));
+  double rssSum;
+  PetscCall(PeakRSS(comm, &rssSum, &r.peakRSS));
+  if (problem_.HasExact()) {
+    PetscCall(ErrorAgainstExact(m.space, problem_, m.u, errorDegree_, r.exact));
+    r.hasExact = true;
+  }
+  rows_.push_back(r);
+  solved_.push_back(std::move(m));
+  PetscFunctionReturn(0);
+}
+
+// Every kept solution against the reference on the reference's mesh, then the reference is freed.
+PetscErrorCode ConvergenceStudy::Reference(MeshSolution &r)
+{
+  MPI_Comm           comm = PetscObjectComm((PetscObject)r.u);
+  const Space       &ref  = r.space;
+  const SolveResult &rr   = r.result;
+  const PetscInt     finest = Finest();
+  PetscFunctionBeginUser;
+  PetscCall(SystemDestroy(r.sys));
+  refDofs_ = ref.numGlobal;
+  PetscCall(PetscPrintf(comm, "reference: %s on level %d (N = %d), %d DOFs, %d Newton / %d KSP iterations, %.2f s\n", ElementName(o_.referenceElement), (int)finest, (int)(N0_ << finest), (int)refDofs_, (int)rr.newtonIts, (int)rr.kspIts, rr.solveSeconds));
+  // parent maps from the reference level down to each study level, composed once per level
+  std::vector<PetscInt> map(ref.NumCells());
+  for (PetscInt c = 0; c < ref.NumCells(); ++c) map[c] = c;
+  for (PetscInt l = finest; l >= 0; --l) {
+    for (size_t i = 0; i < rows_.size(); ++i)
+      if (rows_[i].level == l) {
+        PetscCall(ErrorAgainstReference(solved_[i].space, solved_[i].u, ref, r.u, map, rows_[i].reference));
+        rows_[i].hasReference = true;
       }
-      rows.push_back(r);
-      solved.push_back(std::move(m));
-    }
+    if (l > 0)
+      for (PetscInt &c : map) c = parent_[l][c];
   }
+  PetscCall(r.Destroy());
+  PetscFunctionReturn(0);
+}
 
-  PetscInt refDofs = 0;
-  if (o.referenceRefine > 0) {
-    MeshSolution       r;
-    const Space       &ref = r.space;
-    const SolveResult &rr  = r.result;
-    PetscCall(SolveOn(levels[finest], o.referenceElement, problem, assembly, r));
-    refDofs = ref.numGlobal;
-    PetscCall(PetscPrintf(comm, "reference: %s on level %d (N = %d), %d DOFs, %d Newton / %d KSP iterations, %.2f s\n", ElementName(o.referenceElement), (int)finest, (int)(N0 << finest), (int)refDofs, (int)rr.newtonIts, (int)rr.kspIts, rr.solveSeconds));
-    // parent maps from the reference level down to each study level, composed once per level
-    std::vector<PetscInt> map(ref.NumCells());
-    for (PetscInt c = 0; c < ref.NumCells(); ++c) map[c] = c;
-    for (PetscInt l = finest; l >= 0; --l) {
-      for (size_t i = 0; i < rows.size(); ++i)
-        if (rows[i].level == l) {
-          PetscCall(ErrorAgainstReference(solved[i]->space, solved[i]->u, ref, r.u, map, rows[i].reference));
-          rows[i].hasReference = true;
-        }
-      if (l > 0)
-        for (PetscInt &c : map) c = parent[l][c];
-    }
-    PetscCall(r.Destroy());
-  }
-  PetscCall(PrintTable(comm, rows));
-  if (!o.file.empty()) PetscCall(WriteJSON(comm, o.file, problem.scene, o, N0 << finest, refDofs, rows));
-
-  for (auto &m : solved) PetscCall(m->Destroy());
-  for (DM &dm : levels) PetscCall(DMDestroy(&dm));
+PetscErrorCode ConvergenceStudy::Finish()
+{
+  MPI_Comm comm = PetscObjectComm((PetscObject)base_);
+  PetscFunctionBeginUser;
+  PetscCall(PrintTable(comm, rows_));
+  if (!o_.file.empty()) PetscCall(WriteJSON(comm, o_.file, problem_.scene, o_, N0_ << Finest(), refDofs_, rows_));
+  for (MeshSolution &m : solved_) PetscCall(m.Destroy());
+  for (DM &dm : levels_) PetscCall(DMDestroy(&dm));
   PetscFunctionReturn(0);
 }
 

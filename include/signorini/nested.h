@@ -8,7 +8,7 @@
 #pragma once
 
 #include "signorini/mesh.h"
-#include "signorini/pipeline.h"
+#include "signorini/strategy.h"
 
 namespace signorini {
 
@@ -32,13 +32,31 @@ PetscErrorCode Prolongate(const Space &coarse, Vec uH, const Space &fine, const 
 // the obstacle for CR (its restriction to a contact face is only zero at the face's centroid).
 PetscErrorCode TransferActiveSet(const Space &coarse, Vec uH, Vec lowerH, const Space &fine, const std::vector<PetscInt> &parent, Vec lowerh, Vec uh);
 
-// The whole contact solve with nested iteration: levels.dm[0 .. Count()-2] are set up and solved through
-// the pipeline (pipeline.h), each from the prolongation of the one before, and the finest level, which
-// the caller has set up (PipelineSetUp), is solved from the last prolongation. The coarse levels use the
-// options o without the linear comparison and the KKT warning. fine.result receives the finest solve plus
-// one entry per level in result.levels and the time of all solves together in result.solveSeconds. Each
-// coarse mesh of `levels` is destroyed (its entry set to NULL) once its level's space is built, and each
-// parent map once it has been used, so that the solves, and above all the finest one, the peak of the
-// run's memory, do not hold them.
-PetscErrorCode NestedSolve(MeshLevels &levels, const Problem &problem, const PipelineOptions &o, MeshSolution &fine);
+// Nested iteration as a strategy of the loop over meshes (strategy.h): the levels levels.dm[0 ..
+// Count()-1], coarse to fine, each from the prolongation of the one before (the coarsest from u_D). The
+// finest level is solved with the options `fine`; the coarse ones without the linear comparison and the
+// KKT warning, and each coarse mesh is destroyed (its entry set to NULL) once its level's space is built
+// (fine.withMesh frees the finest). Each parent map is dropped once used, and each coarse solution is
+// freed once carried (its system already when solved), so that the solves, and above all the finest one,
+// the peak of the run's memory, do not hold them. `finest` receives the finest solution, its result with
+// one entry per level in result.levels, the time of all solves together in result.solveSeconds and the
+// AMG statistics of all levels.
+class NestedIteration : public MeshStrategy {
+public:
+  NestedIteration(MeshLevels &levels, const Problem &problem, const PipelineOptions &fine) : levels_(levels), problem_(problem), fine_(fine) {}
+  PetscErrorCode Next(Step &step, bool &more) override;
+  PetscErrorCode Carry(MeshSolution &cur, bool &carried) override;
+  PetscErrorCode Solved(MeshSolution &&m) override;
+  MeshSolution   finest;
+
+private:
+  MeshLevels                     &levels_;
+  const Problem                  &problem_;
+  PipelineOptions                 fine_;
+  PetscInt                        level_ = -1; // the level of the step under way
+  MeshSolution                    prev_;       // the coarser solution until it is carried
+  std::vector<SolveResult::Level> summary_;
+  AmgReuseStats                   amg_;        // of the coarse levels
+  double                          prolongSeconds_ = 0;
+};
 } // namespace signorini

@@ -1,7 +1,7 @@
-// The scene on one mesh: space -> assembly -> solve -> checks. Every run goes through it, whether it
-// solves one mesh (main), a sequence of nested levels (nested.h) or a convergence study (study.h); those
-// differ only in which meshes they hand it and what they carry from one mesh to the next (an initial
-// guess for the solve).
+// The scene on one mesh: space -> assembly -> solve -> checks. Every run goes through it, in the loop
+// over meshes in main, whether it solves one mesh, a sequence of nested levels or a convergence study:
+// those are strategies (strategy.h) that differ only in which meshes they hand it and what they carry
+// from one mesh to the next (an initial guess for the solve).
 #pragma once
 
 #include "signorini/contact.h"
@@ -36,8 +36,5 @@ struct PipelineOptions {
 PetscErrorCode PipelineSetUp(DM mesh, const Problem &problem, const PipelineOptions &o, MeshSolution &m);
 // The solve on m's mesh (from u with o.solve.initialGuess, else from u_D), then the checks of the answer.
 PetscErrorCode PipelineSolve(const Problem &problem, const PipelineOptions &o, MeshSolution &m);
-// Both. `guess`, if given, fills m.u with an initial guess between the set-up and the solve (and the
-// solve then starts from it).
-PetscErrorCode PipelineRun(DM mesh, const Problem &problem, const PipelineOptions &o, MeshSolution &m, const std::function<PetscErrorCode(MeshSolution &)> &guess = nullptr);
 
 } // namespace signorini

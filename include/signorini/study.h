@@ -10,6 +10,7 @@
 #include "signorini/contact.h"
 #include "signorini/error.h"
 #include "signorini/mesh.h"
+#include "signorini/strategy.h"
 
 namespace signorini {
 
@@ -35,8 +36,43 @@ struct StudyRow {
   double      solveSeconds = 0, totalSeconds = 0, peakRSS = 0; // peak resident memory (bytes, max over ranks)
 };
 
-// `base` is level 0 (the distributed, possibly refined, mesh of MeshCreate); `N0` its cells per side
-// (box meshes; 0 for files). Prints the table and writes the JSON if asked.
-PetscErrorCode RunStudy(DM base, PetscInt N0, PetscReal h0, Problem &problem, const AssemblyOptions &assembly, PetscInt errorDegree, const StudyOptions &o);
+// The study as a strategy of the loop over meshes (strategy.h): every element of o.elements on every
+// study level (coarse solves first, so that each row's peak memory is not the reference's), nothing
+// carried, each solution kept for its row; then, with o.referenceRefine, the reference on the finest
+// level, against which every kept solution is measured. `base` is level 0 (the distributed, possibly
+// refined, mesh of MeshCreate; the study takes its own reference), `N0` its cells per side (box meshes;
+// 0 for files). The levels are refined at the first Next.
+class ConvergenceStudy : public MeshStrategy {
+public:
+  ConvergenceStudy(DM base, PetscInt N0, PetscReal h0, const Problem &problem, const AssemblyOptions &assembly, PetscInt errorDegree, const StudyOptions &o)
+    : base_(base), N0_(N0), h0_(h0), problem_(problem), assembly_(assembly), errorDegree_(errorDegree), o_(o) {}
+  PetscErrorCode Next(Step &step, bool &more) override;
+  PetscErrorCode Solved(MeshSolution &&m) override;
+  // After the loop: prints the table, writes the JSON if asked, and frees the solutions and the levels.
+  PetscErrorCode Finish();
+
+private:
+  PetscErrorCode Refine();
+  PetscErrorCode Row(MeshSolution &&m);
+  PetscErrorCode Reference(MeshSolution &ref);
+  PetscInt       Finest() const { return o_.levels - 1 + o_.referenceRefine; }
+  PetscInt       NumRows() const { return (PetscInt)o_.elements.size() * o_.levels; }
+
+  DM                                 base_;
+  PetscInt                           N0_;
+  PetscReal                          h0_;
+  const Problem                     &problem_;
+  AssemblyOptions                    assembly_;
+  PetscInt                           errorDegree_;
+  StudyOptions                       o_;
+  std::vector<DM>                    levels_;
+  std::vector<std::vector<PetscInt>> parent_;
+  std::vector<double>                meshSeconds_;
+  PetscInt                           step_ = -1; // rows first (element-major), then the reference
+  PetscLogDouble                     stepStart_ = 0;
+  std::vector<StudyRow>              rows_;
+  std::vector<MeshSolution>          solved_; // one per row
+  PetscInt                           refDofs_ = 0;
+};
 
 } // namespace signorini
