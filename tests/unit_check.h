@@ -2,6 +2,8 @@
 // "PASS name" or "FAIL name: details", and Finish() prints "N passed, M failed" and gives the exit code.
 #pragma once
 
+#include "signorini/problem.h"
+
 #include <petscdmplex.h>
 
 #include <cmath>
@@ -12,6 +14,27 @@
 #include <vector>
 
 namespace unit {
+
+// The scene data of a unit test: the boundary parts and the expressions (the defaults of a plain Poisson
+// problem with f = 1 and zero boundary data).
+struct SceneData {
+  std::vector<PetscInt> dirichlet, contact;
+  const char           *f = "1", *g = "0", *uD = "0", *psi = "0", *kappa = "1";
+};
+inline PetscErrorCode MakeProblem(MPI_Comm comm, PetscInt dim, const SceneData &d, signorini::Problem &p)
+{
+  using signorini::Expression;
+  PetscFunctionBeginUser;
+  p.dirichlet = d.dirichlet;
+  p.contact   = d.contact;
+  PetscCall(Expression::Create(comm, "-f", d.f, 1, p.f));
+  PetscCall(Expression::Create(comm, "-g", d.g, 1, p.g));
+  PetscCall(Expression::Create(comm, "-u_D", d.uD, 1, p.uD));
+  PetscCall(Expression::Create(comm, "-psi", d.psi, 1, p.psi));
+  PetscCall(Expression::Create(comm, "-kappa", d.kappa, 1, p.kappa));
+  PetscCall(signorini::ProblemSetUp(comm, dim, p));
+  PetscFunctionReturn(0);
+}
 
 class Checker {
 public:

@@ -177,20 +177,6 @@ struct SpaceCase {
   double   dirichletValue;
 };
 
-static PetscErrorCode MakeProblem(MPI_Comm comm, PetscInt dim, const SpaceCase &sc, Problem &p)
-{
-  PetscFunctionBeginUser;
-  p.dirichlet = sc.dirichlet;
-  p.contact   = sc.contact;
-  PetscCall(Expression::Create(comm, "-f", "0", 1, p.f));
-  PetscCall(Expression::Create(comm, "-g", "0", 1, p.g));
-  PetscCall(Expression::Create(comm, "-u_D", "0", 1, p.uD));
-  PetscCall(Expression::Create(comm, "-psi", "0", 1, p.psi));
-  PetscCall(Expression::Create(comm, "-kappa", "1", 1, p.kappa));
-  PetscCall(ProblemSetUp(comm, dim, p));
-  PetscFunctionReturn(0);
-}
-
 static PetscErrorCode TestSpace(unit::Checker &ck, const SpaceCase &sc)
 {
   MPI_Comm       comm = PETSC_COMM_WORLD;
@@ -202,7 +188,7 @@ static PetscErrorCode TestSpace(unit::Checker &ck, const SpaceCase &sc)
   const double   kappa = 2.5; // any positive value: K scales linearly
   PetscFunctionBeginUser;
   PetscCall(MeshCreate(comm, sc.mesh, &dm, info));
-  PetscCall(MakeProblem(comm, dim, sc, problem));
+  PetscCall(unit::MakeProblem(comm, dim, {sc.dirichlet, sc.contact, "0"}, problem));
   PetscCall(SpaceCreate(dm, sc.element, problem, space));
   const std::string tag = sc.name;
   ck.Check(space.dim == dim && space.element == sc.element, tag + " dim and element");

@@ -44,19 +44,6 @@ static std::vector<FaceCase> Cases()
   return out;
 }
 
-static PetscErrorCode MakeProblem(MPI_Comm comm, PetscInt dim, Problem &p)
-{
-  PetscFunctionBeginUser;
-  p.dirichlet = {1};
-  PetscCall(Expression::Create(comm, "-f", "1", 1, p.f));
-  PetscCall(Expression::Create(comm, "-g", "0", 1, p.g));
-  PetscCall(Expression::Create(comm, "-u_D", "0", 1, p.uD));
-  PetscCall(Expression::Create(comm, "-psi", "0", 1, p.psi));
-  PetscCall(Expression::Create(comm, "-kappa", "1", 1, p.kappa));
-  PetscCall(ProblemSetUp(comm, dim, p));
-  PetscFunctionReturn(0);
-}
-
 using Point = std::array<double, 3>;
 
 // The vertices of local cell c except vertex k (the face opposite it), sorted.
@@ -99,7 +86,7 @@ static PetscErrorCode TestCase(unit::Checker &ck, const FaceCase &fc)
   Space             s, plain;
   PetscFunctionBeginUser;
   PetscCall(MeshCreate(comm, fc.mesh, &dm, info));
-  PetscCall(MakeProblem(comm, fc.mesh.dim, problem));
+  PetscCall(unit::MakeProblem(comm, fc.mesh.dim, {{1}, {}}, problem));
   PetscCall(SpaceCreate(dm, fc.element, problem, plain));
   ck.Check(plain.interiorFaces.empty() && plain.sharedFaces.empty() && !plain.sharedFaceSF, tag + " no face tables unless asked for");
   PetscCall(SpaceDestroy(plain));

@@ -23,20 +23,6 @@ struct LayoutCase {
   Element     element;
 };
 
-static PetscErrorCode MakeProblem(MPI_Comm comm, PetscInt dim, Problem &p)
-{
-  PetscFunctionBeginUser;
-  p.dirichlet = {dim == 2 ? 3 : 2};
-  p.contact   = {1};
-  PetscCall(Expression::Create(comm, "-f", "1", 1, p.f));
-  PetscCall(Expression::Create(comm, "-g", "0", 1, p.g));
-  PetscCall(Expression::Create(comm, "-u_D", "0", 1, p.uD));
-  PetscCall(Expression::Create(comm, "-psi", "0", 1, p.psi));
-  PetscCall(Expression::Create(comm, "-kappa", "1", 1, p.kappa));
-  PetscCall(ProblemSetUp(comm, dim, p));
-  PetscFunctionReturn(0);
-}
-
 static std::vector<PetscScalar> Values(Vec v)
 {
   const PetscScalar *a;
@@ -99,7 +85,7 @@ static PetscErrorCode TestCase(unit::Checker &ck, const LayoutCase &lc)
   Space    space;
   PetscFunctionBeginUser;
   PetscCall(MeshCreate(comm, lc.mesh, &dm, info));
-  PetscCall(MakeProblem(comm, lc.mesh.dim, problem));
+  PetscCall(unit::MakeProblem(comm, lc.mesh.dim, {{lc.mesh.dim == 2 ? 3 : 2}, {1}}, problem));
   PetscCall(SpaceCreate(dm, lc.element, problem, space)); // space.dm: the layout; space.mesh: the plex
 
   PetscBool isShell;

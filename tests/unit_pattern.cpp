@@ -25,20 +25,6 @@ struct PatternCase {
   PetscInt    dirichlet, contact; // "Face Sets" values
 };
 
-static PetscErrorCode MakeProblem(MPI_Comm comm, PetscInt dim, const PatternCase &pc, Problem &p)
-{
-  PetscFunctionBeginUser;
-  p.dirichlet = {pc.dirichlet};
-  p.contact   = {pc.contact};
-  PetscCall(Expression::Create(comm, "-f", "1", 1, p.f));
-  PetscCall(Expression::Create(comm, "-g", "0", 1, p.g));
-  PetscCall(Expression::Create(comm, "-u_D", "x", 1, p.uD));
-  PetscCall(Expression::Create(comm, "-psi", "0", 1, p.psi));
-  PetscCall(Expression::Create(comm, "-kappa", "1 + x + 2 * y", 1, p.kappa)); // cell-wise different values
-  PetscCall(ProblemSetUp(comm, dim, p));
-  PetscFunctionReturn(0);
-}
-
 // The reference: DMCreateMatrix's preallocation, the same element matrices, the same elimination.
 static PetscErrorCode ReferenceMatrix(const Space &space, const System &sys, Mat *B)
 {
@@ -127,7 +113,8 @@ static PetscErrorCode TestCase(unit::Checker &ck, const PatternCase &pc)
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_size(comm, &size));
   PetscCall(MeshCreate(comm, pc.mesh, &dm, info));
-  PetscCall(MakeProblem(comm, pc.mesh.dim, pc, problem));
+  // u_D = x puts values into the elimination; kappa takes cell-wise different values
+  PetscCall(unit::MakeProblem(comm, pc.mesh.dim, {{pc.dirichlet}, {pc.contact}, "1", "0", "x", "0", "1 + x + 2 * y"}, problem));
   PetscCall(SpaceCreate(dm, pc.element, problem, space));
   PetscCall(AssembleSystem(space, problem, opts, sys));
 

@@ -33,20 +33,6 @@ struct ProlongationCase {
 
 static const char *kPsi = "0.1 * x - 0.05", *kUD = "1 + x";
 
-static PetscErrorCode MakeProblem(MPI_Comm comm, PetscInt dim, const ProlongationCase &pc, Problem &p)
-{
-  PetscFunctionBeginUser;
-  p.dirichlet = {pc.dirichlet};
-  p.contact   = {pc.contact};
-  PetscCall(Expression::Create(comm, "-f", "1", 1, p.f));
-  PetscCall(Expression::Create(comm, "-g", "0", 1, p.g));
-  PetscCall(Expression::Create(comm, "-u_D", kUD, 1, p.uD));
-  PetscCall(Expression::Create(comm, "-psi", kPsi, 1, p.psi));
-  PetscCall(Expression::Create(comm, "-kappa", "1", 1, p.kappa));
-  PetscCall(ProblemSetUp(comm, dim, p));
-  PetscFunctionReturn(0);
-}
-
 // Barycentric coordinates of x in local cell c of space s.
 static void Barycentric(const Space &s, PetscInt c, const PetscReal *x, PetscReal *lambda)
 {
@@ -165,7 +151,7 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
   PetscFunctionBeginUser;
   PetscCall(MeshCreate(comm, pc.mesh, &fineDM, info, &levels, -1));
   ck.Check(levels.Count() == 2 && levels.dm[1] == fineDM && levels.parent[1].size() > 0, tag + " MeshCreate keeps the coarse level and the parent map");
-  PetscCall(MakeProblem(comm, pc.mesh.dim, pc, problem));
+  PetscCall(unit::MakeProblem(comm, pc.mesh.dim, {{pc.dirichlet}, {pc.contact}, "1", "0", kUD, kPsi}, problem));
   PetscCall(SpaceCreate(levels.dm[0], pc.element, problem, coarse));
   PetscCall(SpaceCreate(fineDM, pc.element, problem, fine));
   PetscCall(AssembleSystem(fine, problem, AssemblyOptions(), fineSys));
