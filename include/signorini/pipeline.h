@@ -5,6 +5,7 @@
 #pragma once
 
 #include "signorini/contact.h"
+#include "signorini/estimate.h"
 
 #include <functional>
 
@@ -17,6 +18,7 @@ struct MeshSolution {
   Vec         u = nullptr; // global vector of the space, named "u": the initial guess, then the solution
   SolveResult result;
   double      setupSeconds = 0; // space and assembly (withMesh excluded), max over ranks
+  Estimate    estimate;         // of the error of u, once solved (unless -estimate none)
   PetscErrorCode Destroy();
 };
 

@@ -1,0 +1,60 @@
+// A posteriori estimate of the error in the energy norm |||v|||^2 = sum_T ||kappa^{1/2} grad v||_T^2 (the
+// broken seminorm for CR), by an equilibrated flux and a conforming companion of u_h, for both elements
+// through one path:
+//
+//   sigma in RT0, div sigma = -Pi_0 f on every cell, sigma.n = Pi_0 g on Gamma_N, sigma.n >= 0 on Gamma_C;
+//   v conforming P1 with v = u_D on Gamma_D and v >= psi on Gamma_C (P1: v = u_h).
+//
+// From the variational inequality, for E = |||u - v|||:
+//   E^2 <= (F + osc) E + gamma,  F = ||kappa^{-1/2}(kappa grad v - sigma)||,  gamma = int_{Gamma_C} sigma.n (v - psi),
+// with osc = (sum_T (h_T / pi)^2 / kappa_T ||f - Pi_0 f||_T^2)^{1/2} (Poincare on convex cells) and the
+// same for g on Gamma_N, so E <= (b + sqrt(b^2 + 4 gamma)) / 2 with b = F + osc, and
+//   |||u - u_h||| <= N + E,  N = |||u_h - v|||   (nonconformity; zero for P1).
+// The bound is guaranteed for kappa constant per cell, u_D and psi affine on each boundary face, and an
+// exact discrete solution (the flux is equilibrated up to the solver's residual).
+//
+// CR (Marini): the face fluxes of cell T are Phi_{T,F} = int_T kappa grad u_h . grad phi_F - int_T f phi_F
+// (the load by the assembly's rule), the cell's share of the residual of DOF F: they sum to -int_T f, are
+// opposite on the two sides of a free face, equal int_F g phi_F on Gamma_N and the (non-negative) residual
+// on Gamma_C. v: the vertex average of u_h, set to u_D on Gamma_D and raised to psi on Gamma_C.
+// P1 (Braess-Schoeberl, Ern-Vohralik): sigma = sum over vertices a of sigma_a, sigma_a in RT0 on the patch
+// of a, with div sigma_a = Pi_0(f psi_a - kappa grad u_h . grad psi_a), zero normal flux on the patch's
+// inner boundary, closest to -psi_a kappa grad u_h... (see equilibrate.cpp for the signs and the contact faces).
+#pragma once
+
+#include "signorini/assembly.h"
+
+namespace signorini {
+
+struct EstimateOptions {
+  bool enabled = true; // -estimate none leaves the estimate out
+};
+PetscErrorCode EstimateOptionsFromCommandLine(MPI_Comm comm, EstimateOptions &o);
+
+// The flux and the companion the estimate is computed from.
+struct Reconstruction {
+  // sigma in RT0: flux[(c - cStart) * (dim + 1) + k] = integral over cone face k of cell c (the face opposite
+  // the cell's vertex k, as in Space::cellVert) of sigma . n, n pointing out of the cell.
+  std::vector<PetscReal> flux;
+  // v at every local vertex (index v - vStart); empty for P1, where v = u_h.
+  std::vector<PetscReal> companion;
+};
+
+struct Estimate {
+  bool      computed = false;
+  PetscReal eta = 0;           // the bound of |||u - u_h|||
+  PetscReal flux = 0;          // F
+  PetscReal nonconformity = 0; // N
+  PetscReal contact = 0;       // gamma
+  PetscReal oscillation = 0;   // osc (f and g)
+  std::vector<PetscReal> cellEta2; // per local cell: its indicator squared (flux, nonconformity, oscillation and contact parts of the cell)
+  double    seconds = 0;       // max over ranks
+};
+
+// Per element, from the solution u (global vector) of the assembled system.
+PetscErrorCode ReconstructCR(const Space &space, const Problem &problem, const System &sys, Vec u, Reconstruction &r);
+PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const System &sys, Vec u, Reconstruction &r);
+// Pushes the Estimate stage: the reconstruction of the space's element, then the estimate from it.
+PetscErrorCode EstimateError(const Space &space, const Problem &problem, const System &sys, Vec u, Estimate &e);
+
+} // namespace signorini

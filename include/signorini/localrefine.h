@@ -1,0 +1,20 @@
+// Conforming refinement of marked cells of a distributed simplex mesh, for adaptive refinement. The new
+// mesh keeps the distribution (every child on its parent's rank), the "Face Sets" and "Cell Sets" labels,
+// and is the same on any number of ranks: the closure that keeps it conforming is decided by geometry
+// only (edge lengths, ties broken by coordinates), never by a rank's numbering.
+#pragma once
+
+#include "signorini/common.h"
+
+#include <petscdmplex.h>
+
+namespace signorini {
+
+// Collective. marked[c - cStart] != 0 for the cells to refine (the closure may refine more). parent[c] of
+// fine cell c (fine cells start at 0) is the coarse cell (c - cStart) containing it.
+// By bisection of marked edges (2D and 3D; bisect.cpp).
+PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked, DM *fine, std::vector<PetscInt> *parent);
+// By PETSc's skeleton-based refinement, DMPlexTransform "refine_sbr" (2D only; localrefine.cpp).
+PetscErrorCode RefineMarkedSBR(DM coarse, const std::vector<char> &marked, DM *fine, std::vector<PetscInt> *parent);
+
+} // namespace signorini
