@@ -21,18 +21,16 @@ the largest memory; each run's JSON and log are kept (NAME-runK)."""
 import argparse
 import csv
 import glob
-import json
 import os
 import statistics
 import subprocess
 import sys
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(HERE)
-EXE = os.path.join(ROOT, "build", "signorini")
+import launch
+from launch import ROOT
+
 STAGES = ["mesh", "distribute", "refine", "setup", "assemble", "solve"]
 SETUP = ["mesh", "distribute", "refine", "setup", "assemble"]
-ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
 
 
 def mesh_args(dim, N):
@@ -100,21 +98,17 @@ def run_once(dim, element, N, ranks, out_dir, extra, preset, suffix):
     scene = "paper-5.1" if dim == 2 else "paper-5.1-3d"
     tag = "%dd-%s-N%d-np%d%s%s" % (dim, element, N, ranks, "-" + os.path.basename(preset) if preset else "", suffix)
     summary, log = os.path.join(out_dir, tag + ".json"), os.path.join(out_dir, tag + ".log")
-    cmd = [EXE, "-options_file", os.path.join(ROOT, "petsc-options", scene), "-space", element] + mesh_args(dim, N)
+    args = launch.scene(scene) + ["-space", element] + mesh_args(dim, N)
     if preset:
-        cmd += ["-options_file", preset]
+        args += ["-options_file", preset]
     # -malloc_dump switches on PETSc's tracing allocator (cheap without -malloc_debug), so the summary holds
     # PETSc's own malloc peak next to the peak RSS; it also reports any PETSc object the run leaks.
-    cmd += ["-compare_linear", "-malloc_dump", "-summary", summary, "-log_view", ":" + log] + list(extra)
-    if ranks > 1:
-        cmd = ["mpirun", "--oversubscribe", "-n", str(ranks)] + cmd
-    p = subprocess.run(cmd, capture_output=True, text=True, env=ENV)
-    if p.returncode != 0 or not os.path.exists(summary):
-        sys.stderr.write(p.stdout + p.stderr)
-        return {"scene": scene, "dim": dim, "element": element, "N": N, "ranks": ranks, "preset": preset, "status": "failed (exit %d)" % p.returncode}
-    with open(summary) as f:
-        s = json.load(f)
-    return row_from_summary(s, dim, element, N, ranks, preset)
+    args += ["-compare_linear", "-malloc_dump", "-log_view", ":" + log] + list(extra)
+    r = launch.run(args, ranks, summary=summary)
+    if r.returncode != 0 or r.summary is None:
+        sys.stderr.write(r.stdout + r.stderr)
+        return {"scene": scene, "dim": dim, "element": element, "N": N, "ranks": ranks, "preset": preset, "status": "failed (exit %d)" % r.returncode}
+    return row_from_summary(r.summary, dim, element, N, ranks, preset)
 
 
 def row_from_summary(s, dim, element, N, ranks, preset):

@@ -16,37 +16,26 @@ the ceiling of the efficiency of a solve limited by memory bandwidth, as CG + Bo
 skips it)."""
 import argparse
 import csv
-import json
 import os
 import re
-import shlex
-import subprocess
 import sys
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(HERE)
-EXE = os.path.join(ROOT, "build", "signorini")
-STREAM_EXE = os.path.join(ROOT, "build", "signorini-stream")
-sys.path.insert(0, HERE)
-from bench import SETUP, mesh_args, save_png, warm_memory  # noqa: E402
-
-ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+import launch
+from bench import SETUP, mesh_args, save_png, warm_memory
+from launch import ROOT
 
 
-def mpiexec(args, ranks):
-    cmd = shlex.split(args.mpiexec) + ["-n", str(ranks)] + shlex.split(args.mpiexec_args)
-    if ranks > (os.cpu_count() or 1) and os.path.basename(shlex.split(args.mpiexec)[0]) in ("mpirun", "mpiexec"):
-        cmd.append("--oversubscribe")  # Open MPI refuses more ranks than cores otherwise
-    return cmd
+def mpiexec(args):
+    """The launcher with its arguments, as one string for launch.command."""
+    return args.mpiexec + " " + args.mpiexec_args
 
 
 def bandwidth(args, ranks):
     """STREAM triad bandwidth of `ranks` ranks together in GB/s (None on failure)."""
-    cmd = mpiexec(args, ranks) + [STREAM_EXE]
-    p = subprocess.run(cmd, capture_output=True, text=True, env=ENV)
-    m = re.search(r"triad bandwidth: ([0-9.]+) GB/s", p.stdout)
-    if p.returncode != 0 or not m:
-        sys.stderr.write(" ".join(cmd) + "\n" + p.stdout + p.stderr)
+    r = launch.run([], ranks, exe=launch.STREAM_EXE, mpiexec=mpiexec(args))
+    m = re.search(r"triad bandwidth: ([0-9.]+) GB/s", r.stdout)
+    if r.returncode != 0 or not m:
+        sys.stderr.write(" ".join(r.cmd) + "\n" + r.stdout + r.stderr)
         return None
     return float(m.group(1))
 
@@ -65,21 +54,19 @@ def efficiencies(rows, strong):
                 r["eff_ceiling"] = (r["bw_gbs"] / r["ranks"]) / (base["bw_gbs"] / base["ranks"])
 
 
-def launch(args, ranks, options, tag):
+def solve(args, ranks, options, tag):
     """Runs signorini on `ranks` ranks; returns its summary dict (None on failure)."""
     summary, log = os.path.join(args.out, tag + ".json"), os.path.join(args.out, tag + ".log")
-    cmd = mpiexec(args, ranks) + [EXE] + options + ["-compare_linear", "-summary", summary, "-log_view", ":" + log]
-    p = subprocess.run(cmd, capture_output=True, text=True, env=ENV)
-    if p.returncode != 0 or not os.path.exists(summary):
-        sys.stderr.write(" ".join(cmd) + "\n" + p.stdout + p.stderr)
+    r = launch.run(options + ["-compare_linear", "-log_view", ":" + log], ranks, summary=summary, mpiexec=mpiexec(args))
+    if r.returncode != 0 or r.summary is None:
+        sys.stderr.write(" ".join(r.cmd) + "\n" + r.stdout + r.stderr)
         return None
-    with open(summary) as f:
-        return json.load(f)
+    return r.summary
 
 
 def scene_options(dim, element):
     scene = "paper-5.1" if dim == 2 else "paper-5.1-3d"
-    return ["-options_file", os.path.join(ROOT, "petsc-options", scene), "-space", element]
+    return launch.scene(scene) + ["-space", element]
 
 
 def times(s):
@@ -92,7 +79,7 @@ def strong(args, extra):
     for p in args.ranks:
         opts = scene_options(args.dim, args.element) + mesh_args(args.dim, args.strong_n) + extra
         bw = None if args.no_stream else bandwidth(args, p)  # measured next to the run: a shared machine's bandwidth drifts
-        s = launch(args, p, opts, "strong-%dd-%s-N%d-np%d" % (args.dim, args.element, args.strong_n, p))
+        s = solve(args, p, opts, "strong-%dd-%s-N%d-np%d" % (args.dim, args.element, args.strong_n, p))
         rows.append(row("strong", p, s, bw))
     efficiencies(rows, strong=True)
     return rows
@@ -107,7 +94,7 @@ def weak(args, extra):
         upper = [str(p)] + ["1"] * (args.dim - 1)
         opts = scene_options(args.dim, args.element) + ["-box_faces", ",".join(faces), "-refine", mesh[3], "-box_upper", ",".join(upper)] + extra
         bw = None if args.no_stream else bandwidth(args, p)
-        s = launch(args, p, opts, "weak-%dd-%s-N%d-np%d" % (args.dim, args.element, args.weak_n, p))
+        s = solve(args, p, opts, "weak-%dd-%s-N%d-np%d" % (args.dim, args.element, args.weak_n, p))
         rows.append(row("weak", p, s, bw))
     efficiencies(rows, strong=False)
     return rows

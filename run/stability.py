@@ -30,16 +30,12 @@ import json
 import math
 import os
 import shlex
-import subprocess
 import sys
 import tempfile
 import time
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(HERE)
-OPTIONS = os.path.join(ROOT, "petsc-options")
-EXE = os.environ.get("SIGNORINI_EXE", os.path.join(ROOT, "build", "signorini"))
-ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMPI_MCA_rmaps_base_oversubscribe="1")
+import launch
+from launch import EXE, OPTIONS, ROOT
 
 TOL_KKT = 1e-6      # KKT residuals and stationarity, relative
 TOL_DIRECT = 1e-6   # max|u - u_direct| / max|u_direct|
@@ -79,16 +75,8 @@ class Runner:
         self.ranks, self.tmp, self.count = ranks, tmp, 0
 
     def _exec(self, args):
-        cmd = [EXE] + args
-        if self.ranks > 1:
-            cmd = ["mpirun", "--oversubscribe", "-n", str(self.ranks)] + cmd
-        t0 = time.time()
-        p = subprocess.run(cmd, capture_output=True, text=True, env=ENV, cwd=ROOT)
-        message = ""
-        if p.returncode != 0:
-            lines = [l for l in (p.stderr + p.stdout).splitlines() if "error" in l.lower()] or (p.stderr + p.stdout).splitlines()[-1:]
-            message = lines[0].replace("signorini: error: ", "") if lines else "exit %d" % p.returncode
-        return p.returncode, message, time.time() - t0
+        r = launch.run(args, self.ranks, cwd=ROOT)
+        return r.returncode, r.error_line() if r.returncode else "", r.seconds
 
     def solve(self, args):
         self.count += 1

@@ -12,12 +12,10 @@ import argparse
 import csv
 import json
 import os
-import subprocess
 import sys
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(HERE)
-sys.path.insert(0, HERE)
+import launch
+from launch import ROOT
 
 
 def run_study(scene, options, out_dir, ranks=1, quiet=False):
@@ -26,20 +24,17 @@ def run_study(scene, options, out_dir, ranks=1, quiet=False):
 
     os.makedirs(out_dir, exist_ok=True)
     json_path = os.path.join(out_dir, "study.json")
-    cmd = [os.path.join(ROOT, "build", "signorini"), "-options_file", os.path.join(ROOT, "petsc-options", scene)]
+    args = launch.scene(scene)
     if "-study_levels" not in options:
-        cmd += ["-study_levels", "5"]
+        args += ["-study_levels", "5"]
     profiles = os.path.join(out_dir, "finest")
-    cmd += list(options) + ["-study_output", json_path, "-study_profiles", profiles]
-    if ranks > 1:
-        cmd = ["mpirun", "--oversubscribe", "-n", str(ranks)] + cmd
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
-    p = subprocess.run(cmd, capture_output=True, text=True, env=env)
-    if p.returncode != 0:
-        sys.stderr.write(p.stdout + p.stderr)
-        sys.exit("run/study: signorini failed (exit %d)" % p.returncode)
+    args += list(options) + ["-study_output", json_path, "-study_profiles", profiles]
+    r = launch.run(args, ranks)
+    if r.returncode != 0:
+        sys.stderr.write(r.stdout + r.stderr)
+        sys.exit("run/study: signorini failed (exit %d)" % r.returncode)
     if not quiet:
-        sys.stdout.write(p.stdout)
+        sys.stdout.write(r.stdout)
     with open(json_path) as f:
         study = json.load(f)
     write_csv(study, os.path.join(out_dir, "study.csv"))

@@ -21,21 +21,16 @@ import tempfile
 import time
 
 import harness
-from harness import ENV, EXE, MPIEXEC, Checker, scene
+from harness import ENV, Checker, command, scene
 
 c = Checker()
 BASE = scene("paper-5.1") + ["-box_faces", "8"]
 SLOW = scene("paper-5.1") + ["-box_faces", "8", "-refine", "7"]  # a few seconds: time to interrupt it
 
 
-def command(args, ranks):
-    cmd = [EXE] + args
-    return [MPIEXEC, "--oversubscribe", "-n", str(ranks)] + cmd if ranks > 1 else cmd
-
-
 def run(args, cwd, ranks=1):
-    p = subprocess.run(command(args, ranks), cwd=cwd, capture_output=True, text=True, env=ENV, timeout=300)
-    return p.returncode, p.stderr
+    r = harness.launch.run(args, ranks, cwd=cwd, timeout=300)
+    return r.returncode, r.stderr
 
 
 def snapshot(top):

@@ -10,7 +10,6 @@ lists every component's options.
 Each error case: exit status 1, exactly one line "signorini: error: ..." naming the option (and the value),
 nothing in the output directory, and no -dm_view output (the mesh was never built)."""
 import os
-import subprocess
 import tempfile
 
 import harness
@@ -60,7 +59,7 @@ with tempfile.TemporaryDirectory() as tmp:
     rc, _, err, _ = run(base + ["-options_file", path], check=False)
     c.check(rc == 1 and err.strip() == "signorini: error: unknown option -refin (did you mean -refine?)", "-refin in an options file: %s" % err.strip())
     env = dict(harness.ENV, PETSC_OPTIONS="-box_face 4")
-    p = subprocess.run([harness.EXE] + base + ["-summary", os.path.join(tmp, "s.json")], capture_output=True, text=True, env=env, timeout=600)
+    p = harness.launch.run(base + ["-summary", os.path.join(tmp, "s.json")], env=env, timeout=600)
     c.check(p.returncode == 1 and p.stderr.strip() == "signorini: error: unknown option -box_face (did you mean -box_faces?)", "-box_face in PETSC_OPTIONS: %s" % p.stderr.strip())
     c.check(os.listdir(tmp) == ["typo"], "mistyped options in a file or PETSC_OPTIONS: nothing written")
 

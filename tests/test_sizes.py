@@ -5,10 +5,9 @@ built. The runs are made under an address-space limit of 4 GB, so a run that sta
 could not end with that line; no file is created in the working directory; a size that fits still runs."""
 import os
 import resource
-import subprocess
 import tempfile
 
-from harness import ENV, EXE, MPIEXEC, Checker, scene
+from harness import Checker, launch, scene
 
 c = Checker()
 B = scene("paper-5.1") + ["-box_faces", "8"]
@@ -22,10 +21,8 @@ def limit_memory():
 def run(args, ranks=1):
     """Runs in an empty directory with an output and a summary there; returns (rc, output, files left)."""
     with tempfile.TemporaryDirectory() as tmp:
-        cmd = [EXE] + args + ["-output", "u.h5", "-summary", "run.json", "-dm_view"]
-        if ranks > 1:
-            cmd = [MPIEXEC, "--oversubscribe", "-n", str(ranks)] + cmd
-        p = subprocess.run(cmd, capture_output=True, text=True, env=ENV, cwd=tmp, timeout=300, preexec_fn=limit_memory if ranks == 1 else None)
+        p = launch.run(args + ["-output", "u.h5", "-summary", "run.json", "-dm_view"], ranks, cwd=tmp, timeout=300,
+                       preexec_fn=limit_memory if ranks == 1 else None)
         return p.returncode, p.stdout + p.stderr, sorted(os.listdir(tmp))
 
 

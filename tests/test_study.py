@@ -15,7 +15,7 @@ import subprocess
 import sys
 import tempfile
 
-from harness import ENV, EXE, ROOT, Checker, run, scene
+from harness import ENV, ROOT, Checker, run, scene
 
 c = Checker()
 tight = ["-ksp_rtol", "1e-13"]

@@ -1,0 +1,66 @@
+"""How every script in run/ and tests/ starts signorini: the executable, the MPI launcher and its environment,
+and the JSON summary the run writes. Standard library only, so that the tests run with any python3.
+
+  SIGNORINI_EXE      the executable (default build/signorini)
+  SIGNORINI_MPIEXEC  the MPI launcher, with its own arguments (default "mpirun")"""
+import json
+import os
+import shlex
+import subprocess
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+OPTIONS = os.path.join(ROOT, "petsc-options")
+EXE = os.environ.get("SIGNORINI_EXE", os.path.join(ROOT, "build", "signorini"))
+STREAM_EXE = os.path.join(os.path.dirname(EXE), "signorini-stream")
+MPIEXEC = os.environ.get("SIGNORINI_MPIEXEC", "mpirun")
+# Open MPI refuses to run as root, and more ranks than cores, unless told; other launchers ignore these.
+ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMPI_MCA_rmaps_base_oversubscribe="1")
+
+
+def scene(name):
+    """The options of the scene petsc-options/NAME."""
+    return ["-options_file", os.path.join(OPTIONS, name)]
+
+
+def command(args, ranks=1, exe=None, mpiexec=None):
+    """The command line of `exe` (default signorini) with `args`, under the MPI launcher when ranks > 1 or when
+    a launcher is named (e.g. "srun", or "mpirun --bind-to core")."""
+    cmd = [exe or EXE] + list(args)
+    if ranks > 1 or mpiexec:
+        cmd = shlex.split(mpiexec or MPIEXEC) + ["-n", str(ranks)] + cmd
+    return cmd
+
+
+class Result:
+    """A finished run: its exit status, output, wall time and, when asked for, its summary (None if it wrote none)."""
+
+    def __init__(self, cmd, p, seconds, summary):
+        self.cmd, self.returncode, self.stdout, self.stderr = cmd, p.returncode, p.stdout, p.stderr
+        self.seconds, self.summary = seconds, summary
+
+    def error_line(self):
+        """The run's one-line error (without the "signorini: error: " prefix), or the last line of its output."""
+        out = (self.stderr + self.stdout).splitlines()
+        lines = [l for l in out if "error" in l.lower()] or out[-1:]
+        return lines[0].replace("signorini: error: ", "") if lines else "exit %d" % self.returncode
+
+
+def run(args, ranks=1, summary=False, exe=None, mpiexec=None, env=None, **kwargs):
+    """Runs signorini (or `exe`) with `args` on `ranks` ranks. summary: False (none asked for), True (a temporary
+    -summary file, read and removed) or a path (written there and read). Other keywords go to subprocess.run
+    (cwd, timeout, preexec_fn, ...)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = summary if isinstance(summary, str) else os.path.join(tmp, "summary.json") if summary else None
+        cmd = command(list(args) + (["-summary", path] if path else []), ranks, exe, mpiexec)
+        t0 = time.time()
+        p = subprocess.run(cmd, capture_output=True, text=True, env=env or ENV, **kwargs)
+        seconds = time.time() - t0
+        data = None
+        if path and not os.path.isabs(path) and kwargs.get("cwd"):
+            path = os.path.join(kwargs["cwd"], path)
+        if path and os.path.exists(path):
+            with open(path) as f:
+                data = json.load(f)
+    return Result(cmd, p, seconds, data)
