@@ -86,6 +86,44 @@ def plot_solution(h5_files, path, title):
     return True
 
 
+def plot_mesh(h5_file, path, title):
+    """The mesh of a 2D run (e.g. an adapted one) from its HDF5 output, cells coloured by the error indicator
+    when the file has it, and Gamma_C drawn over it: red where the contact is active, blue where it is not.
+    Returns False in 3D."""
+    import h5py
+    from matplotlib.collections import LineCollection
+
+    with h5py.File(h5_file, "r") as h5:
+        X = h5["/geometry/vertices"][:]
+        if X.shape[1] != 2:
+            return False
+        cells = h5["/viz/topology/cells"][:]
+        eta = h5["/cell_fields/eta"][:] if "/cell_fields/eta" in h5 else None
+        contact = None
+        if "/contact/cells" in h5:
+            CX = h5["/contact/vertices"][:]
+            contact = (CX[h5["/contact/cells"][:]], h5["/contact/active"][:])
+    fig, ax = plt.subplots(figsize=(6.4, 5.6))
+    if eta is not None:
+        t = ax.tripcolor(X[:, 0], X[:, 1], cells, facecolors=eta, cmap="magma_r", edgecolors="k", linewidth=0.1)
+        fig.colorbar(t, ax=ax, shrink=0.85, label="indicator eta_T")
+    else:
+        ax.triplot(X[:, 0], X[:, 1], cells, color="k", lw=0.2)
+    if contact is not None:
+        segments, active = contact
+        colors = ["tab:red" if a > 0.5 else "tab:blue" for a in active]
+        ax.add_collection(LineCollection(segments, colors=colors, linewidths=3))
+        ax.plot([], [], color="tab:red", lw=3, label="Gamma_C, active")
+        ax.plot([], [], color="tab:blue", lw=3, label="Gamma_C, inactive")
+        ax.legend(fontsize=8, loc="upper right")
+    ax.set_aspect("equal")
+    ax.set_title("%s (%d cells)" % (title, len(cells)))
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+    return True
+
+
 def _read_profile(path):
     import csv
 
