@@ -18,8 +18,9 @@
 // opposite on the two sides of a free face, equal int_F g phi_F on Gamma_N and the (non-negative) residual
 // on Gamma_C. v: the vertex average of u_h, set to u_D on Gamma_D and raised to psi on Gamma_C.
 // P1 (Braess-Schoeberl, Ern-Vohralik): sigma = sum over vertices a of sigma_a, sigma_a in RT0 on the patch
-// of a, with div sigma_a = Pi_0(f psi_a - kappa grad u_h . grad psi_a), zero normal flux on the patch's
-// inner boundary, closest to -psi_a kappa grad u_h... (see equilibrate.cpp for the signs and the contact faces).
+// of a, with int_T div sigma_a = int_T (kappa grad u_h . grad psi_a - f psi_a) on each cell, zero normal
+// flux on the faces of the patch without a, closest to the cellwise RT0 interpolant of psi_a kappa grad u_h
+// (see equilibrate.cpp for the Neumann, Dirichlet and contact faces).
 #pragma once
 
 #include "signorini/assembly.h"

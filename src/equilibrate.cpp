@@ -1,0 +1,511 @@
+// The equilibrated flux of a conforming P1 solution (estimate.h): sigma = sum over vertices a of sigma_a,
+// each sigma_a in RT0 on the patch omega_a of a (the cells containing a), found by a small constrained
+// least-squares problem on the patch.
+//
+// Signs. The problem is -div(kappa grad u) = f with kappa du/dn = g on Gamma_N and the contact pressure
+// kappa du/dn >= 0 on Gamma_C, so sigma approximates kappa grad u_h and div sigma = -Pi_0 f. With
+// G_T = kappa_T grad u_h on T and the discrete residual r_a = sum_T (G_T . grad psi_a |T| - int_T f psi_a)
+// - int_{Gamma_N} g psi_a (loads by the assembly's rules; r_a = (A u - b)_a: 0 at a free vertex, >= 0 at
+// a contact vertex), sigma_a satisfies
+//   - on every cell T of omega_a: int_T div sigma_a = G_T . grad psi_a |T| - int_T f psi_a (summed over
+//     the vertices of T this is -int_T f, as psi_a sum to 1 and grad psi_a to 0);
+//   - normal flux 0 on the faces of omega_a not containing a, int_F g psi_a on Neumann faces, free on
+//     Dirichlet faces (of a Dirichlet vertex), >= 0 on contact faces (of a contact vertex; 0 for a
+//     Dirichlet vertex, so that Gamma_C carries exactly the discrete contact pressure), 0 on the other
+//     faces of the domain's boundary (natural condition, g = 0);
+//   - it is closest to the cellwise RT0 interpolant of psi_a G (face fluxes G_T . n_F |F| / d on the
+//     faces containing a): the sum of these interpolants over a is G itself, so sigma = kappa grad u_h
+//     wherever the data allow it (u_h exact, e.g. u affine), and the estimate vanishes there.
+// "Closest" is measured face by face, in the diagonal of the RT0 mass matrix weighted by 1/kappa_T
+// (sum over the patch's cells T and faces F of T containing a of int_T |phi_F|^2 / kappa_T times the
+// squared flux difference; phi_F the RT0 basis function of unit flux), which is equivalent to
+// ||kappa^{-1/2} .|| on shape-regular cells. Any feasible sigma_a gives a guaranteed bound; this choice
+// makes the patch problem a weighted graph Laplacian on the patch's cells (faces = edges), solved by a
+// Cholesky factorisation of the size of the cell count: in 3D (about 23 cells and 70 faces per patch)
+// several times cheaper than the saddle point system of the full mass matrix, with the same efficiency
+// indices on the sine problems of tests/unit_equilibrate (equal to three digits).
+// The cell constraints of a patch without Dirichlet or contact faces sum to r_a = 0: the equations are
+// compatible exactly when u_h solves the discrete problem. A solver's residual r_a is spread over the
+// patch's cells in proportion to their volume, so the flux is equilibrated up to it. At a contact vertex
+// the cell constraints sum to r_a = the sum of the contact faces' fluxes; a contact flux that comes out
+// negative is fixed at 0 and the patch solved again (it ends with every contact flux >= 0, and their sum
+// still r_a > 0; at an inactive contact vertex, r_a = 0, all of them end at 0).
+//
+// Parallel: the mesh has no overlap, so a patch may span ranks. The cells of a patch are gathered on the
+// owner of its vertex through a star forest whose leaves are the (cell, corner) pairs of shared vertices
+// and whose roots are the owned vertices; patches entirely on one rank are solved where they are. Each
+// (cell, corner) record carries everything its patch needs (global vertex numbers to match faces, the
+// cell's face weights, the interpolant's fluxes, the loads), so the patch problem, and its result, do
+// not depend on the partition beyond the order of the cells in it (round-off).
+#include "signorini/estimate.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <unordered_map>
+
+namespace signorini {
+
+namespace {
+
+enum FaceKind : PetscInt { kFaceOther = 0, kFaceDirichlet = 1, kFaceNeumann = 2, kFaceContact = 3 };
+
+// One cell as seen from one of its vertices (the patch's centre): the unit of the gather.
+struct Corner {
+  PetscInt  gid[4];     // global vertex numbers of the cell's vertices
+  PetscInt  kind[4];    // FaceKind of the cell's face j (opposite vertex j)
+  PetscInt  corner;     // which vertex of the cell is the centre a
+  PetscInt  pad;        // the reals start 8-byte aligned either way; sent as bytes
+  PetscReal weight[4];  // int_T |phi_j|^2 / kappa_T, phi_j the RT0 function of unit flux on face j
+  PetscReal target[4];  // fluxes of the RT0 interpolant of G_T: G_T . n_j |F_j| / d (psi_a G: all but face `corner`)
+  PetscReal load;       // int_T f psi_a
+  PetscReal neumann[4]; // int_{F_j} g psi_a on Neumann faces, 0 elsewhere
+  PetscReal volume;
+};
+
+// Per local cell, what every corner record of the cell repeats.
+struct CellData {
+  std::vector<PetscReal> weight, target, load, volume; // nb, nb, nb (int_T f psi_k), 1 per cell
+  std::vector<char>      kind;                       // FaceKind per cell face
+  std::unordered_map<PetscInt, std::array<PetscReal, 4>> neumann; // cell*nb + j -> int_{F_j} g psi_k, k = 0..d
+};
+
+// int_T |phi_j|^2 with phi_j = (x - X_j) / (d |T|), the diagonal of the RT0 mass matrix: exact, from
+// int_T lambda_i lambda_m = |T| (1 + delta_im) / ((d+1)(d+2)).
+void RT0MassDiagonal(PetscInt dim, const PetscReal *X, PetscReal volume, PetscReal *M)
+{
+  const PetscInt  nb    = dim + 1;
+  const PetscReal scale = 1.0 / (dim * dim * volume * (dim + 1) * (dim + 2));
+  for (PetscInt j = 0; j < nb; ++j) {
+    PetscReal s = 0;
+    for (PetscInt d = 0; d < dim; ++d) {
+      PetscReal P = 0; // sum_i (X_i - X_j)
+      for (PetscInt i = 0; i < nb; ++i) {
+        const PetscReal e = X[i * dim + d] - X[j * dim + d];
+        P += e;
+        s += e * e;
+      }
+      s += P * P;
+    }
+    M[j] = s * scale;
+  }
+}
+
+bool Contains(const std::vector<PetscInt> &parts, PetscInt p) { return std::find(parts.begin(), parts.end(), p) != parts.end(); }
+
+// The loads by the assembly's rules (AssembleCells, AssembleNeumann), per vertex of each cell.
+PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, CellData &cd)
+{
+  const PetscInt nb = space.Nb(), dim = space.dim, nc = space.NumCells();
+  std::string    error;
+  PetscReal      x[3], lambda[4];
+  PetscFunctionBeginUser;
+  cd.weight.resize(nc * nb);
+  cd.target.resize(nc * nb);
+  cd.load.assign(nc * nb, 0.0);
+  cd.volume.resize(nc);
+  cd.kind.assign(nc * nb, kFaceOther);
+  const bool zeroLoad = problem.f->IsZero();
+  for (PetscInt c = 0; c < nc; ++c) {
+    CellGeometry        g;
+    const Space::Coords X = space.X(c);
+    ComputeCellGeometry(dim, X, g);
+    cd.volume[c]        = g.volume;
+    const PetscReal kap = sys.Kappa(c);
+    PetscReal       G[3];
+    space.Grad(c, u, g, G);
+    RT0MassDiagonal(dim, X, g.volume, &cd.weight[c * nb]);
+    for (PetscInt j = 0; j < nb; ++j) cd.weight[c * nb + j] /= kap;
+    for (PetscInt j = 0; j < nb; ++j) {
+      PetscReal dot = 0; // |F_j| n_j = -d |T| grad lambda_j
+      for (PetscInt d = 0; d < dim; ++d) dot += kap * G[d] * g.gradLambda[j][d];
+      cd.target[c * nb + j] = -g.volume * dot;
+    }
+    if (zeroLoad) continue;
+    problem.f->SetCellSet(space.CellSet(c));
+    for (PetscInt q = 0; q < sys.cellRule.Size(); ++q) {
+      const PetscReal *lq = sys.cellRule.Point(q);
+      SimplexPoint(dim, X, lq, x);
+      const PetscReal fq = problem.f->Scalar(x, dim, error) * sys.cellRule.weights[q] * g.volume;
+      for (PetscInt k = 0; k < nb; ++k) cd.load[c * nb + k] += fq * lq[k];
+    }
+  }
+  for (const BoundaryFace &bf : space.boundary) {
+    const PetscInt at = bf.cell * nb + bf.opposite;
+    if (Contains(problem.dirichlet, bf.part)) cd.kind[at] = kFaceDirichlet;
+    else if (Contains(problem.contact, bf.part)) cd.kind[at] = kFaceContact;
+    else if (Contains(problem.neumann, bf.part)) {
+      cd.kind[at] = kFaceNeumann;
+      if (!problem.HasNeumann()) continue;
+      std::array<PetscReal, 4> share{0, 0, 0, 0};
+      const PetscReal          area = space.FaceMeasure(bf);
+      problem.g->SetCellSet(space.CellSet(bf.cell));
+      for (PetscInt q = 0; q < sys.faceRule.Size(); ++q) {
+        space.FaceToCell(bf, sys.faceRule.Point(q), lambda);
+        space.Point(bf.cell, lambda, x);
+        const PetscReal gq = problem.g->Scalar(x, dim, error) * sys.faceRule.weights[q] * area;
+        for (PetscInt k = 0; k < nb; ++k) share[k] += gq * lambda[k];
+      }
+      cd.neumann[at] = share;
+    }
+  }
+  PetscCall(CheckAll(PetscObjectComm((PetscObject)space.dm), error.empty(), error));
+  PetscFunctionReturn(0);
+}
+
+void FillCorner(const Space &space, const CellData &cd, const PetscInt *gidx, PetscInt c, PetscInt k, Corner &r)
+{
+  const PetscInt nb = space.Nb();
+  r.corner = k;
+  for (PetscInt j = 0; j < nb; ++j) {
+    r.gid[j]     = gidx[space.cellVert[c * nb + j]];
+    r.kind[j]    = cd.kind[c * nb + j];
+    r.target[j]  = cd.target[c * nb + j];
+    r.neumann[j] = 0;
+    r.weight[j]  = cd.weight[c * nb + j];
+    if (r.kind[j] == kFaceNeumann) {
+      const auto it = cd.neumann.find(c * nb + j);
+      if (it != cd.neumann.end()) r.neumann[j] = it->second[k];
+    }
+  }
+  r.load   = cd.load[c * nb + k];
+  r.volume = cd.volume[c];
+}
+
+// Solves L z = b in place (z in b) for L symmetric positive definite, row-major N x N, by Cholesky's
+// factorisation (lower triangle overwritten). Returns false if L is not positive definite.
+bool SolveSPD(PetscInt N, PetscReal *L, PetscReal *b)
+{
+  for (PetscInt k = 0; k < N; ++k) {
+    PetscReal d = L[k * N + k];
+    for (PetscInt j = 0; j < k; ++j) d -= L[k * N + j] * L[k * N + j];
+    if (!(d > 0)) return false;
+    L[k * N + k]        = std::sqrt(d);
+    const PetscReal inv = 1.0 / L[k * N + k];
+    for (PetscInt i = k + 1; i < N; ++i) {
+      PetscReal s = L[i * N + k];
+      for (PetscInt j = 0; j < k; ++j) s -= L[i * N + j] * L[k * N + j];
+      L[i * N + k] = s * inv;
+    }
+  }
+  for (PetscInt i = 0; i < N; ++i) { // L y = b
+    for (PetscInt j = 0; j < i; ++j) b[i] -= L[i * N + j] * b[j];
+    b[i] /= L[i * N + i];
+  }
+  for (PetscInt i = N - 1; i >= 0; --i) { // L^T z = y
+    for (PetscInt j = i + 1; j < N; ++j) b[i] -= L[j * N + i] * b[j];
+    b[i] /= L[i * N + i];
+  }
+  return true;
+}
+
+// The patch problem of one vertex. Unknowns: the fluxes of the faces containing a that are free (interior
+// to the patch: one unknown for the two sides; Dirichlet; contact not yet fixed at 0). Writes the fluxes
+// of every face of every patch cell (nb per corner record, outward, 0 on the face opposite a).
+class Patch {
+public:
+  explicit Patch(PetscInt dim) : nb_(dim + 1) {}
+
+  // The patch of a vertex of kind vertexKind whose cells are the n corner records. Returns false for a
+  // singular system. One object serves all patches, so its work arrays are allocated once.
+  bool Solve(char vertexKind, const Corner *corners, PetscInt n, PetscReal *flux)
+  {
+    vertexKind_ = vertexKind;
+    corners_    = corners;
+    n_          = n;
+    MatchFaces();
+    for (;;) {
+      if (!SolveOnce(flux)) return false;
+      bool changed = false; // contact fluxes must be >= 0: fix the negative ones at 0 and solve again
+      for (size_t u = 0; u < x_.size(); ++u)
+        if (contact_[u] && x_[u] < 0) {
+          for (const Side &s : sides_)
+            if (s.unknown == (PetscInt)u) fixedSides_.push_back({s.entry, s.face, 0.0});
+          changed = true;
+        }
+      if (!changed) return true;
+      Renumber();
+    }
+  }
+
+private:
+  struct Side {
+    PetscInt  entry, face, unknown; // corner record, its face, the unknown (-1: fixed)
+    PetscReal sign;
+  };
+  struct Fixed {
+    PetscInt  entry, face;
+    PetscReal value;
+  };
+  // A face containing a is known by its other vertices (one in 2D, two in 3D): their global numbers,
+  // smaller first, packed in one integer.
+  struct Key {
+    uint64_t v;
+    PetscInt entry, face;
+  };
+
+  // The faces containing a, matched between the patch's cells by their vertices' global numbers.
+  void MatchFaces()
+  {
+    std::vector<Key> &keys = keys_;
+    keys.clear();
+    for (PetscInt e = 0; e < n_; ++e) {
+      const Corner &c = corners_[e];
+      for (PetscInt j = 0; j < nb_; ++j) {
+        if (j == c.corner) continue;
+        uint64_t lo = UINT32_MAX, hi = 0; // the vertices other than a and j
+        for (PetscInt i = 0; i < nb_; ++i)
+          if (i != j && i != c.corner) lo = std::min<uint64_t>(lo, (uint32_t)c.gid[i]), hi = std::max<uint64_t>(hi, (uint32_t)c.gid[i]);
+        keys.push_back({nb_ == 3 ? lo : (lo << 32 | hi), e, j});
+      }
+    }
+    // Pair the keys through a small open-addressing hash table (a sort costs more at 70 keys in 3D).
+    const size_t n = keys.size();
+    size_t       size = 16;
+    while (size < 2 * n) size *= 2;
+    table_.assign(size, -1);
+    partner_.assign(n, -1);
+    for (size_t i = 0; i < n; ++i) {
+      size_t h = (size_t)((keys[i].v * 0x9E3779B97F4A7C15ull) >> 40) & (size - 1);
+      while (table_[h] >= 0 && keys[table_[h]].v != keys[i].v) h = (h + 1) & (size - 1);
+      if (table_[h] < 0) table_[h] = (PetscInt)i;
+      else partner_[table_[h]] = (PetscInt)i, partner_[i] = table_[h];
+    }
+    sides_.clear();
+    fixedSides_.clear();
+    for (size_t i = 0; i < n; ++i) {
+      const Key &k = keys[i];
+      if (partner_[i] >= 0) {
+        if (partner_[i] < (PetscInt)i) continue; // listed with its partner
+        const Key &o = keys[partner_[i]];
+        sides_.push_back({k.entry, k.face, -1, 1.0});
+        sides_.push_back({o.entry, o.face, -1, -1.0});
+        continue;
+      }
+      const Corner  &c    = corners_[k.entry];
+      const PetscInt kind = c.kind[k.face];
+      const bool     free = kind == kFaceDirichlet || (kind == kFaceContact && vertexKind_ != kDirichlet);
+      if (free) sides_.push_back({k.entry, k.face, -1, 1.0});
+      else fixedSides_.push_back({k.entry, k.face, kind == kFaceNeumann ? c.neumann[k.face] : 0.0});
+    }
+    Renumber();
+  }
+
+  // Unknown numbers for the sides not fixed; a side fixed later leaves sides_ (its pair partner cannot be
+  // fixed: only contact faces are, and they have one side).
+  void Renumber()
+  {
+    if (!fixedSides_.empty()) {
+      size_t kept = 0;
+      for (const Side &s : sides_) {
+        bool fixed = false;
+        for (const Fixed &f : fixedSides_) fixed |= f.entry == s.entry && f.face == s.face;
+        if (!fixed) sides_[kept++] = s;
+      }
+      sides_.resize(kept);
+    }
+    PetscInt m = 0;
+    contact_.clear();
+    boundaryUnknown_ = false;
+    for (size_t i = 0; i < sides_.size(); ++i) {
+      const bool second = i > 0 && sides_[i].sign < 0;
+      sides_[i].unknown = second ? sides_[i - 1].unknown : m++;
+      if (!second) {
+        const bool paired = i + 1 < sides_.size() && sides_[i + 1].sign < 0;
+        contact_.push_back(!paired && corners_[sides_[i].entry].kind[sides_[i].face] == kFaceContact);
+        boundaryUnknown_ |= !paired;
+      }
+    }
+    x_.assign(m, 0.0);
+  }
+
+  bool SolveOnce(PetscReal *flux)
+  {
+    const PetscInt m = (PetscInt)x_.size();
+    // y_e = fluxes of entry e = S_e x + fixed_e; objective 1/2 sum_e sum_j W_ej (y_e[j] - t_e[j])^2 with t_e
+    // the interpolant's fluxes without the face opposite a; constraint sum_j y_e[j] = sum_j t_e[j] - load_e.
+    std::vector<PetscReal> &fixed = fixed_, &rhs = rhs_, &resid = resid_; // resid: t_e - fixed_e
+    fixed.assign(n_ * nb_, 0.0);
+    rhs.assign(n_, 0.0);
+    resid.resize(n_ * nb_);
+    for (const Fixed &f : fixedSides_) fixed[f.entry * nb_ + f.face] = f.value;
+    PetscReal volume = 0, mismatch = 0;
+    for (PetscInt e = 0; e < n_; ++e) {
+      const Corner &c = corners_[e];
+      rhs[e]          = -c.load;
+      for (PetscInt j = 0; j < nb_; ++j) {
+        const PetscReal t = j == c.corner ? 0.0 : c.target[j];
+        resid[e * nb_ + j] = t - fixed[e * nb_ + j];
+        rhs[e] += resid[e * nb_ + j];
+      }
+      volume += c.volume;
+      mismatch += rhs[e];
+    }
+    // Without a free boundary face the constraints sum to r_a: make them compatible, drop one.
+    const PetscInt rows = boundaryUnknown_ ? n_ : n_ - 1;
+    if (!boundaryUnknown_)
+      for (PetscInt e = 0; e < n_; ++e) rhs[e] -= mismatch * corners_[e].volume / volume;
+    // Minimise 1/2 x^T H x - c^T x subject to B x = rhs (B: +-1 per side, in the row of its entry), H the
+    // diagonal weights: x = H^{-1} (c - B^T mu) with (B H^{-1} B^T) mu = B H^{-1} c - rhs, a graph
+    // Laplacian on the cells (grounded by the free boundary faces, or by the dropped row).
+    h_.assign(m, 0.0);
+    c_.assign(m, 0.0);
+    for (const Side &s : sides_) {
+      const PetscReal w = corners_[s.entry].weight[s.face];
+      h_[s.unknown] += w;
+      c_[s.unknown] += s.sign * w * resid[s.entry * nb_ + s.face];
+    }
+    L_.assign(rows * rows, 0.0);
+    mu_.resize(rows);
+    for (PetscInt e = 0; e < rows; ++e) mu_[e] = -rhs[e];
+    for (size_t i = 0; i < sides_.size(); ++i) {
+      const Side &s = sides_[i];
+      if (s.entry >= rows) continue;
+      mu_[s.entry] += s.sign * c_[s.unknown] / h_[s.unknown];
+      // the sides of one unknown are adjacent in sides_ (a pair: +1, then -1)
+      for (size_t k = i > 0 ? i - 1 : 0; k < std::min(i + 2, sides_.size()); ++k)
+        if (sides_[k].unknown == s.unknown && sides_[k].entry < rows) L_[s.entry * rows + sides_[k].entry] += s.sign * sides_[k].sign / h_[s.unknown];
+    }
+    if (!SolveSPD(rows, L_.data(), mu_.data())) return false;
+    for (PetscInt u = 0; u < m; ++u) x_[u] = c_[u];
+    for (const Side &s : sides_)
+      if (s.entry < rows) x_[s.unknown] -= s.sign * mu_[s.entry];
+    for (PetscInt u = 0; u < m; ++u) x_[u] /= h_[u];
+    for (PetscInt i = 0; i < n_ * nb_; ++i) flux[i] = fixed[i];
+    for (const Side &s : sides_) flux[s.entry * nb_ + s.face] = s.sign * x_[s.unknown];
+    return true;
+  }
+
+  PetscInt               nb_;
+  char                   vertexKind_ = kFree;
+  const Corner          *corners_ = nullptr;
+  PetscInt               n_       = 0;
+  std::vector<Side>      sides_;
+  std::vector<Fixed>     fixedSides_;
+  std::vector<char>      contact_;
+  bool                   boundaryUnknown_ = false;
+  std::vector<Key>       keys_;
+  std::vector<PetscInt>  table_, partner_;
+  std::vector<PetscReal> x_, h_, c_, L_, mu_, fixed_, rhs_, resid_;
+};
+
+} // namespace
+
+PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const System &sys, Vec u, Reconstruction &r)
+{
+  MPI_Comm             comm = PetscObjectComm((PetscObject)space.dm);
+  static PetscLogEvent event = 0;
+  PetscFunctionBeginUser;
+  PetscCheck(space.element == Element::P1, comm, PETSC_ERR_ARG_WRONG, "ReconstructP1 needs the P1 space");
+  if (!event) PetscCall(PetscLogEventRegister("ReconstructP1", DM_CLASSID, &event));
+  PetscCall(PetscLogEventBegin(event, 0, 0, 0, 0));
+  const PetscInt nb = space.Nb(), nc = space.NumCells(), nv = space.numLocal;
+
+  Vec                loc;
+  const PetscScalar *ua;
+  CellData           cd;
+  PetscCall(DMGetLocalVector(space.dm, &loc));
+  PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, loc));
+  PetscCall(VecGetArrayRead(loc, &ua));
+  PetscCall(ComputeCellData(space, problem, sys, ua, cd));
+  PetscCall(VecRestoreArrayRead(loc, &ua));
+
+  // Local cells per vertex (CSR), and which vertices have cells on other ranks too (their count summed
+  // over ranks is larger).
+  std::vector<PetscInt> start(nv + 1, 0), list(nc * nb);
+  for (PetscInt i = 0; i < nc * nb; ++i) ++start[space.cellVert[i] + 1];
+  for (PetscInt v = 0; v < nv; ++v) start[v + 1] += start[v];
+  {
+    std::vector<PetscInt> next(start.begin(), start.end() - 1);
+    for (PetscInt i = 0; i < nc * nb; ++i) list[next[space.cellVert[i]]++] = i; // i = c * nb + corner
+  }
+  Vec          total;
+  PetscScalar *la;
+  PetscCall(DMGetGlobalVector(space.dm, &total));
+  PetscCall(VecGetArray(loc, &la));
+  for (PetscInt v = 0; v < nv; ++v) la[v] = start[v + 1] - start[v];
+  PetscCall(VecRestoreArray(loc, &la));
+  PetscCall(VecSet(total, 0));
+  PetscCall(DMLocalToGlobal(space.dm, loc, ADD_VALUES, total));
+  PetscCall(DMGlobalToLocal(space.dm, total, INSERT_VALUES, loc));
+  PetscCall(DMRestoreGlobalVector(space.dm, &total));
+  std::vector<char> shared(nv);
+  PetscCall(VecGetArrayRead(loc, &ua));
+  for (PetscInt v = 0; v < nv; ++v) shared[v] = PetscRealPart(ua[v]) > start[v + 1] - start[v] + 0.5;
+  PetscCall(VecRestoreArrayRead(loc, &ua));
+  PetscCall(DMRestoreLocalVector(space.dm, &loc));
+
+  const PetscInt *gidx;
+  std::vector<PetscInt> ranges;
+  PetscMPIInt           rank;
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  PetscCall(OwnershipRanges(comm, space.numOwned, ranges));
+  PetscCall(ISLocalToGlobalMappingGetIndices(space.ltog, &gidx));
+  const auto owned = [&](PetscInt v) { return gidx[v] >= ranges[rank] && gidx[v] < ranges[rank + 1]; };
+
+  r.flux.assign(nc * nb, 0.0);
+  r.companion.clear();
+  bool                   ok = true;
+  std::vector<Corner>    corners;
+  std::vector<PetscReal> out;
+  Patch                  patch(space.dim);
+  // Patches on this rank alone.
+  for (PetscInt v = 0; v < nv && ok; ++v) {
+    if (shared[v] || start[v + 1] == start[v]) continue;
+    const PetscInt n = start[v + 1] - start[v];
+    corners.resize(n);
+    out.resize(n * nb);
+    for (PetscInt e = 0; e < n; ++e) FillCorner(space, cd, gidx, list[start[v] + e] / nb, list[start[v] + e] % nb, corners[e]);
+    ok = patch.Solve(space.kindLocal[v], corners.data(), n, out.data());
+    for (PetscInt e = 0; e < n && ok; ++e)
+      for (PetscInt j = 0; j < nb; ++j) r.flux[(list[start[v] + e] / nb) * nb + j] += out[e * nb + j];
+  }
+
+  // Patches across ranks: gather their corners on the vertex's owner, solve there, scatter back.
+  std::vector<PetscInt>    leafAt;
+  std::vector<PetscSFNode> remote;
+  for (PetscInt i = 0; i < nc * nb; ++i) {
+    const PetscInt v = space.cellVert[i];
+    if (!shared[v]) continue;
+    const PetscMPIInt owner = OwnerOf(ranges, gidx[v]);
+    leafAt.push_back(i);
+    remote.push_back({owner, gidx[v] - ranges[owner]});
+  }
+  std::vector<char> rootKind(space.numOwned, kFree);
+  for (PetscInt v = 0; v < nv; ++v)
+    if (owned(v)) rootKind[gidx[v] - ranges[rank]] = space.kindLocal[v];
+  PetscSF sf;
+  PetscCall(PetscSFCreate(comm, &sf));
+  PetscCall(PetscSFSetGraph(sf, space.numOwned, (PetscInt)leafAt.size(), NULL, PETSC_COPY_VALUES, remote.data(), PETSC_COPY_VALUES));
+  const PetscInt *degree;
+  PetscCall(PetscSFComputeDegreeBegin(sf, &degree));
+  PetscCall(PetscSFComputeDegreeEnd(sf, &degree));
+  PetscInt nmulti = 0;
+  for (PetscInt i = 0; i < space.numOwned; ++i) nmulti += degree[i];
+  std::vector<Corner> leafCorners(leafAt.size()), rootCorners(nmulti);
+  for (size_t l = 0; l < leafAt.size(); ++l) FillCorner(space, cd, gidx, leafAt[l] / nb, leafAt[l] % nb, leafCorners[l]);
+  PetscCall(ISLocalToGlobalMappingRestoreIndices(space.ltog, &gidx));
+  MPI_Datatype cornerType, fluxType;
+  PetscCallMPI(MPI_Type_contiguous((int)sizeof(Corner), MPI_BYTE, &cornerType));
+  PetscCallMPI(MPI_Type_commit(&cornerType));
+  PetscCallMPI(MPI_Type_contiguous((int)nb, MPIU_REAL, &fluxType));
+  PetscCallMPI(MPI_Type_commit(&fluxType));
+  PetscCall(PetscSFGatherBegin(sf, cornerType, leafCorners.data(), rootCorners.data()));
+  PetscCall(PetscSFGatherEnd(sf, cornerType, leafCorners.data(), rootCorners.data()));
+  std::vector<PetscReal> rootFlux(nmulti * nb, 0.0), leafFlux(leafAt.size() * nb, 0.0);
+  for (PetscInt i = 0, off = 0; i < space.numOwned && ok; off += degree[i++])
+    if (degree[i] > 0) ok = patch.Solve(rootKind[i], &rootCorners[off], degree[i], &rootFlux[off * nb]);
+  PetscCall(PetscSFScatterBegin(sf, fluxType, rootFlux.data(), leafFlux.data()));
+  PetscCall(PetscSFScatterEnd(sf, fluxType, rootFlux.data(), leafFlux.data()));
+  for (size_t l = 0; l < leafAt.size(); ++l)
+    for (PetscInt j = 0; j < nb; ++j) r.flux[(leafAt[l] / nb) * nb + j] += leafFlux[l * nb + j];
+  PetscCallMPI(MPI_Type_free(&cornerType));
+  PetscCallMPI(MPI_Type_free(&fluxType));
+  PetscCall(PetscSFDestroy(&sf));
+  PetscCall(CheckAll(comm, ok, "estimate: a vertex patch problem of the P1 flux reconstruction is singular"));
+  PetscCall(PetscLogEventEnd(event, 0, 0, 0, 0));
+  PetscFunctionReturn(0);
+}
+
+} // namespace signorini
