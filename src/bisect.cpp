@@ -12,9 +12,15 @@
 //    Restricted to a face, this is the face's own sequence of bisections of its marked edges in the same
 //    order (a cut by an edge off the face leaves the face's pieces whole), so the two cells of a face cut
 //    it alike. The closure makes every cell's first cut its longest edge, for the shape of the children.
-// New vertices are the midpoints of the marked edges. The fine mesh is made by PETSc from the cell list
-// of the children (each on its parent's rank) with global vertex numbers: the old vertices and the
-// midpoints are numbered by the owners of the coarse vertices and edges.
+// New vertices are the midpoints of the marked edges.
+//
+// The fine DMPlex is built directly, as refine.cpp builds the uniform one (PETSc's DMPlexInterpolate of
+// the children's cell list costs 3 s for 300 k tetrahedra, ten times the rest): every child stays on its
+// parent's rank; its edges and faces are found by sorting their vertex sets; each fine point knows the
+// coarse point it lies in (its carrier: a vertex, edge, face, or the cell itself). The fine points in a
+// shared coarse point are shared with the same ranks, and both sides list them in the same order (by
+// global vertex numbers), which gives the point star forest; the vertex order stored in every edge and
+// face is by global vertex numbers too, so shared points have the same cones on every rank.
 #include "signorini/localrefine.h"
 #include "signorini/mesh.h"
 
@@ -35,6 +41,8 @@ struct Coarse {
   std::vector<PetscInt>  edgeVerts; // 2 per edge, as v - vS
   std::vector<PetscInt>  cellVerts; // dim + 1 per cell, as v - vS
   std::vector<PetscInt>  cellEdges; // nce per cell, as e - eS
+  std::vector<PetscInt>  cellFaces; // 3D: 4 per cell (cone), coarse points
+  std::vector<PetscInt>  faceEdges; // 3D: 3 per face, as e - eS
   PetscInt               NumCells() const { return cE - cS; }
   PetscInt               NumVertices() const { return vE - vS; }
   PetscInt               NumEdges() const { return eE - eS; }
@@ -91,7 +99,14 @@ PetscErrorCode ReadCoarse(DM dm, Coarse &m)
           if (std::find(edges, edges + n, fcone[k] - m.eS) == edges + n) edges[n++] = fcone[k] - m.eS;
       }
     PetscCheck(n == m.nce, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: cell %" PetscInt_FMT " has %" PetscInt_FMT " edges", c, n);
+    if (m.dim == 3) m.cellFaces.insert(m.cellFaces.end(), cone, cone + 4);
   }
+  if (m.dim == 3)
+    for (PetscInt f = m.fS; f < m.fE; ++f) {
+      const PetscInt *cone;
+      PetscCall(DMPlexGetCone(dm, f, &cone));
+      for (PetscInt k = 0; k < 3; ++k) m.faceEdges.push_back(cone[k] - m.eS);
+    }
   PetscFunctionReturn(0);
 }
 
@@ -255,51 +270,388 @@ void Cut(const Coarse &m, const std::vector<PetscInt> &rank, const std::vector<c
   }
 }
 
-// Global numbers of the fine vertices (-1: midpoint of an unmarked edge): owned vertices and midpoints of
-// owned marked edges are numbered contiguously per rank, the others get their owner's number.
-PetscErrorCode NumberVertices(DM dm, const Coarse &m, const std::vector<char> &mark, std::vector<PetscInt> &gnum, PetscInt *numOwned, std::vector<PetscInt> &owned)
+// How the coarse points are shared with other ranks (the charts of a DMPlex start at 0).
+struct Sharing {
+  PetscSF            sf = nullptr;     // the point star forest; null: nothing is shared
+  std::vector<PetscInt> leaf;          // over the chart: index in the graph's leaves, or -1
+  std::vector<char>  shared;           // over the chart: a leaf, or a root with leaves
+  const PetscSFNode *remote = nullptr; // the graph's roots of the leaves
+};
+
+PetscErrorCode GetSharing(DM dm, const Coarse &m, Sharing &sh)
 {
-  MPI_Comm        comm = PetscObjectComm((PetscObject)dm);
-  PetscSF         sf;
   PetscInt        nroots, nleaves;
-  const PetscInt *ilocal;
+  const PetscInt *ilocal, *degree;
   PetscFunctionBeginUser;
-  PetscCall(DMGetPointSF(dm, &sf));
-  PetscCall(PetscSFGetGraph(sf, &nroots, &nleaves, &ilocal, NULL));
-  std::vector<char> isLeaf(m.pE - m.pS, 0);
-  for (PetscInt l = 0; nroots >= 0 && l < nleaves; ++l) isLeaf[(ilocal ? ilocal[l] : l) - m.pS] = 1;
-  const PetscInt nV = m.NumVertices();
-  owned.clear();
-  for (PetscInt v = 0; v < nV; ++v)
-    if (!isLeaf[m.vS + v - m.pS]) owned.push_back(v);
-  for (PetscInt e = 0; e < m.NumEdges(); ++e)
-    if (mark[e] && !isLeaf[m.eS + e - m.pS]) owned.push_back(nV + e);
-  PetscInt n = (PetscInt)owned.size(), offset = 0;
+  PetscCheck(m.pS == 0, PETSC_COMM_SELF, PETSC_ERR_SUP, "RefineMarkedBisection: chart starts at %" PetscInt_FMT, m.pS);
+  sh.leaf.assign(m.pE, -1);
+  sh.shared.assign(m.pE, 0);
+  PetscCall(DMGetPointSF(dm, &sh.sf));
+  PetscCall(PetscSFGetGraph(sh.sf, &nroots, &nleaves, &ilocal, &sh.remote));
+  if (nroots < 0) {
+    sh.sf = nullptr;
+    PetscFunctionReturn(0);
+  }
+  for (PetscInt l = 0; l < nleaves; ++l) {
+    const PetscInt p = ilocal ? ilocal[l] : l;
+    sh.leaf[p] = l, sh.shared[p] = 1;
+  }
+  PetscCall(PetscSFComputeDegreeBegin(sh.sf, &degree));
+  PetscCall(PetscSFComputeDegreeEnd(sh.sf, &degree));
+  for (PetscInt p = 0; p < nroots; ++p)
+    if (degree[p]) sh.shared[p] = 1;
+  PetscFunctionReturn(0);
+}
+
+// The coarse point of a fine vertex (local id): the vertex itself, or the edge of a midpoint.
+PetscInt VertexCarrier(const Coarse &m, PetscInt id) { return id < m.NumVertices() ? m.vS + id : m.eS + id - m.NumVertices(); }
+
+// Global numbers of the fine vertices by local id (-1: midpoint of an unmarked edge): owned vertices and
+// midpoints of owned edges are numbered contiguously per rank, the others get their owner's number.
+PetscErrorCode NumberVertices(DM dm, const Coarse &m, const Sharing &sh, const std::vector<char> &mark, std::vector<PetscInt> &gnum)
+{
+  MPI_Comm       comm = PetscObjectComm((PetscObject)dm);
+  const PetscInt nV   = m.NumVertices(), nId = nV + m.NumEdges();
+  PetscFunctionBeginUser;
+  const auto used = [&](PetscInt id) { return id < nV || mark[id - nV]; };
+  PetscInt   n = 0, offset = 0;
+  for (PetscInt id = 0; id < nId; ++id) n += used(id) && sh.leaf[VertexCarrier(m, id)] < 0;
   PetscCallMPI(MPI_Exscan(&n, &offset, 1, MPIU_INT, MPI_SUM, comm));
   PetscMPIInt r;
   PetscCallMPI(MPI_Comm_rank(comm, &r));
   if (r == 0) offset = 0;
-  *numOwned = n;
-  // Over the coarse chart: a vertex carries its own number, an edge its midpoint's.
-  const auto point = [&](PetscInt id) { return id < nV ? m.vS + id : m.eS + id - nV; };
-  std::vector<PetscInt> root(m.pE - m.pS, -1);
-  for (PetscInt i = 0; i < n; ++i) root[point(owned[i]) - m.pS] = offset + i;
+  std::vector<PetscInt> root(m.pE, -1);
+  for (PetscInt id = 0; id < nId; ++id)
+    if (used(id) && sh.leaf[VertexCarrier(m, id)] < 0) root[VertexCarrier(m, id)] = offset++;
   std::vector<PetscInt> all = root;
-  if (nroots >= 0) {
-    PetscCall(PetscSFBcastBegin(sf, MPIU_INT, root.data(), all.data(), MPI_REPLACE));
-    PetscCall(PetscSFBcastEnd(sf, MPIU_INT, root.data(), all.data(), MPI_REPLACE));
+  if (sh.sf) {
+    PetscCall(PetscSFBcastBegin(sh.sf, MPIU_INT, root.data(), all.data(), MPI_REPLACE));
+    PetscCall(PetscSFBcastEnd(sh.sf, MPIU_INT, root.data(), all.data(), MPI_REPLACE));
   }
-  gnum.assign(nV + m.NumEdges(), -1);
-  for (PetscInt id = 0; id < nV + m.NumEdges(); ++id)
-    if (id < nV || mark[id - nV]) gnum[id] = all[point(id) - m.pS];
+  gnum.assign(nId, -1);
+  for (PetscInt id = 0; id < nId; ++id)
+    if (used(id)) gnum[id] = all[VertexCarrier(m, id)];
   PetscFunctionReturn(0);
 }
 
-// Every label but depth and cell type: a child cell carries its parent's values, a child face lying on a
-// coarse face that face's values. (Values on coarse edges and vertices are not carried.) A child face
-// lies on coarse face F if and only if its vertices are among F's vertices and the midpoints of F's
-// edges: a midpoint of another edge of the cell lies off F's plane.
-PetscErrorCode CarryLabels(DM coarse, DM fine, const Coarse &m, const std::vector<char> &mark, const Children &ch, const std::vector<PetscInt> &finePoint)
+// The vertex pairs of a simplex (a triangle's edges are the first three, in PETSc's cone order: edge k
+// runs from vertex k to k + 1) and the faces of PETSc's reference tetrahedron.
+const PetscInt kPair[6][2]    = {{0, 1}, {1, 2}, {2, 0}, {0, 3}, {1, 3}, {2, 3}};
+const PetscInt kRefFace[4][3] = {{0, 1, 2}, {0, 3, 1}, {0, 2, 3}, {2, 1, 3}};
+
+PetscInt PairIndex(PetscInt i, PetscInt j)
+{
+  for (PetscInt k = 0; k < 6; ++k)
+    if ((kPair[k][0] == i && kPair[k][1] == j) || (kPair[k][0] == j && kPair[k][1] == i)) return k;
+  return -1;
+}
+
+// The fine mesh of one rank. Points: the children (cells) in order, the vertices (numbered by increasing
+// global number), then in 3D the triangles, then the edges. Edges and triangles store their vertices by
+// increasing number.
+struct Fine {
+  PetscInt              dim = 0, nc = 0, nv = 0, nt = 0, ne = 0;
+  std::vector<PetscInt> vertexOf, vertexId;     // local id -> fine vertex (-1: none), and back
+  std::vector<PetscInt> edgeVerts, triVerts;     // 2, 3 fine vertices per point
+  std::vector<PetscInt> edgeCarrier, triCarrier; // the coarse point it lies in (-1: inside a cell)
+  std::vector<PetscInt> childEdge, childTri;     // per child: the edge of pair k, the triangle of face k (3D)
+  std::vector<PetscInt> parentOf;                // per child: the coarse cell (as c - cStart)
+  PetscInt              Vertex(PetscInt i) const { return nc + i; }
+  PetscInt              Tri(PetscInt j) const { return nc + nv + j; }
+  PetscInt              Edge(PetscInt j) const { return nc + nv + nt + j; }
+  PetscInt              End() const { return nc + nv + nt + ne; }
+};
+
+// The coarse point that the fine point with local vertex ids `ids` (inside coarse cell c) lies in: the
+// cell's lowest-dimensional edge or face whose fine vertices (its vertices and the midpoints of its marked
+// edges) include all of them, or -1 (the cell's interior).
+PetscInt Carrier(const Coarse &m, const std::vector<char> &mark, PetscInt c, const PetscInt *ids, PetscInt n)
+{
+  const PetscInt nV = m.NumVertices();
+  PetscInt       on[9], k;
+  const auto     inside = [&](PetscInt count) {
+    for (PetscInt i = 0; i < n; ++i)
+      if (std::find(on, on + count, ids[i]) == on + count) return false;
+    return true;
+  };
+  for (PetscInt j = 0; j < m.nce; ++j) {
+    const PetscInt e = m.cellEdges[m.nce * c + j];
+    k = 0, on[k++] = m.edgeVerts[2 * e], on[k++] = m.edgeVerts[2 * e + 1];
+    if (mark[e]) on[k++] = nV + e;
+    if (inside(k)) return m.eS + e;
+  }
+  for (PetscInt j = 0; m.dim == 3 && j < 4; ++j) {
+    const PetscInt F = m.cellFaces[4 * c + j];
+    k                = 0;
+    for (PetscInt i = 0; i < 3; ++i) {
+      const PetscInt e = m.faceEdges[3 * (F - m.fS) + i];
+      on[k++]          = m.edgeVerts[2 * e], on[k++] = m.edgeVerts[2 * e + 1];
+      if (mark[e]) on[k++] = nV + e;
+    }
+    if (inside(k)) return F;
+  }
+  return -1;
+}
+
+// Numbers the distinct keys (sorted vertex sets) of `occ` (key, occurrence) in increasing order: idOf[occurrence]
+// = number, `verts` gets each key once, `first` an occurrence of each.
+template <size_t N>
+void Distinct(std::vector<std::pair<std::array<PetscInt, N>, PetscInt>> &occ, std::vector<PetscInt> &idOf, std::vector<PetscInt> &verts, std::vector<PetscInt> &first)
+{
+  std::sort(occ.begin(), occ.end());
+  idOf.assign(occ.size(), -1);
+  verts.clear(), first.clear();
+  PetscInt id = -1;
+  for (size_t i = 0; i < occ.size(); ++i) {
+    if (i == 0 || occ[i].first != occ[i - 1].first) {
+      ++id;
+      verts.insert(verts.end(), occ[i].first.begin(), occ[i].first.end());
+      first.push_back(occ[i].second);
+    }
+    idOf[occ[i].second] = id;
+  }
+}
+
+// The fine points of one rank: vertices, then the distinct edges and triangles of the children, each with
+// its carrier.
+void FinePoints(const Coarse &m, const std::vector<char> &mark, const Children &ch, const std::vector<PetscInt> &gnum, Fine &f)
+{
+  const PetscInt nb = ch.nv, nce = m.nce;
+  f.dim = m.dim, f.nc = (PetscInt)ch.verts.size() / nb;
+  std::vector<std::pair<PetscInt, PetscInt>> byNumber;
+  for (PetscInt id = 0; id < (PetscInt)gnum.size(); ++id)
+    if (gnum[id] >= 0) byNumber.push_back({gnum[id], id});
+  std::sort(byNumber.begin(), byNumber.end());
+  f.nv = (PetscInt)byNumber.size();
+  f.vertexOf.assign(gnum.size(), -1);
+  f.vertexId.resize(f.nv);
+  for (PetscInt i = 0; i < f.nv; ++i) f.vertexOf[byNumber[i].second] = i, f.vertexId[i] = byNumber[i].second;
+  f.parentOf.resize(f.nc);
+  for (PetscInt c = 0; c < m.NumCells(); ++c)
+    for (PetscInt k = ch.start[c]; k < ch.start[c + 1]; ++k) f.parentOf[k] = c;
+  const auto fineVertex = [&](PetscInt t, PetscInt i) { return f.vertexOf[ch.verts[nb * t + i]]; };
+  std::vector<PetscInt> first, ids(3);
+  {
+    std::vector<std::pair<std::array<PetscInt, 2>, PetscInt>> occ(nce * f.nc);
+    for (PetscInt t = 0; t < f.nc; ++t)
+      for (PetscInt k = 0; k < nce; ++k) {
+        const PetscInt a = fineVertex(t, kPair[k][0]), b = fineVertex(t, kPair[k][1]);
+        occ[nce * t + k] = {{std::min(a, b), std::max(a, b)}, nce * t + k};
+      }
+    Distinct<2>(occ, f.childEdge, f.edgeVerts, first);
+  }
+  f.ne = (PetscInt)first.size();
+  f.edgeCarrier.resize(f.ne);
+  for (PetscInt j = 0; j < f.ne; ++j) {
+    for (PetscInt i = 0; i < 2; ++i) ids[i] = f.vertexId[f.edgeVerts[2 * j + i]];
+    f.edgeCarrier[j] = Carrier(m, mark, f.parentOf[first[j] / nce], ids.data(), 2);
+  }
+  if (m.dim == 2) return;
+  {
+    std::vector<std::pair<std::array<PetscInt, 3>, PetscInt>> occ(4 * f.nc);
+    for (PetscInt t = 0; t < f.nc; ++t)
+      for (PetscInt k = 0; k < 4; ++k) {
+        std::array<PetscInt, 3> key = {fineVertex(t, kRefFace[k][0]), fineVertex(t, kRefFace[k][1]), fineVertex(t, kRefFace[k][2])};
+        std::sort(key.begin(), key.end());
+        occ[4 * t + k] = {key, 4 * t + k};
+      }
+    Distinct<3>(occ, f.childTri, f.triVerts, first);
+  }
+  f.nt = (PetscInt)first.size();
+  f.triCarrier.resize(f.nt);
+  for (PetscInt j = 0; j < f.nt; ++j) {
+    for (PetscInt i = 0; i < 3; ++i) ids[i] = f.vertexId[f.triVerts[3 * j + i]];
+    f.triCarrier[j] = Carrier(m, mark, f.parentOf[first[j] / 4], ids.data(), 3);
+  }
+}
+
+// Cones and orientations: an edge from its lower to its higher vertex; a triangle (a, b, c), a < b < c,
+// with edges (a, b), (b, c), (c, a), the last reversed; a child's faces in PETSc's reference order.
+PetscErrorCode SetCones(DM dm, const Children &ch, const Fine &f)
+{
+  const PetscInt nb = ch.nv;
+  PetscFunctionBeginUser;
+  PetscCall(DMPlexSetChart(dm, 0, f.End()));
+  for (PetscInt t = 0; t < f.nc; ++t) PetscCall(DMPlexSetConeSize(dm, t, nb));
+  for (PetscInt j = 0; j < f.nt; ++j) PetscCall(DMPlexSetConeSize(dm, f.Tri(j), 3));
+  for (PetscInt j = 0; j < f.ne; ++j) PetscCall(DMPlexSetConeSize(dm, f.Edge(j), 2));
+  PetscCall(DMSetUp(dm));
+  for (PetscInt j = 0; j < f.ne; ++j) {
+    const PetscInt cone[2] = {f.Vertex(f.edgeVerts[2 * j]), f.Vertex(f.edgeVerts[2 * j + 1])};
+    PetscCall(DMPlexSetCone(dm, f.Edge(j), cone));
+  }
+  std::vector<char> done(f.nt, 0);
+  for (PetscInt t = 0; t < f.nc; ++t) {
+    PetscInt v[4], cone[4], ornt[4];
+    for (PetscInt i = 0; i < nb; ++i) v[i] = f.vertexOf[ch.verts[nb * t + i]];
+    if (f.dim == 2) {
+      for (PetscInt k = 0; k < 3; ++k) {
+        cone[k] = f.Edge(f.childEdge[3 * t + k]);
+        ornt[k] = v[kPair[k][0]] < v[kPair[k][1]] ? 0 : -1;
+      }
+    } else {
+      for (PetscInt k = 0; k < 4; ++k) {
+        const PetscInt  tri = f.childTri[4 * t + k], want[3] = {v[kRefFace[k][0]], v[kRefFace[k][1]], v[kRefFace[k][2]]};
+        const PetscInt *has = &f.triVerts[3 * tri];
+        cone[k]             = f.Tri(tri);
+        PetscCall(DMPolytopeGetVertexOrientation(DM_POLYTOPE_TRIANGLE, has, want, &ornt[k]));
+        if (done[tri]) continue;
+        done[tri]             = 1;
+        PetscInt       tcone[3];
+        const PetscInt tornt[3] = {0, 0, -1};
+        for (PetscInt e = 0; e < 3; ++e) {
+          const PetscInt a = has[e], b = has[(e + 1) % 3];
+          const PetscInt ia = std::find(v, v + 4, a) - v, ib = std::find(v, v + 4, b) - v;
+          tcone[e] = f.Edge(f.childEdge[6 * t + PairIndex(ia, ib)]);
+        }
+        PetscCall(DMPlexSetCone(dm, f.Tri(tri), tcone));
+        PetscCall(DMPlexSetConeOrientation(dm, f.Tri(tri), tornt));
+      }
+    }
+    PetscCall(DMPlexSetCone(dm, t, cone));
+    PetscCall(DMPlexSetConeOrientation(dm, t, ornt));
+  }
+  PetscFunctionReturn(0);
+}
+
+// The cell-type label as contiguous strata (stride index sets), as refine.cpp makes it.
+PetscErrorCode SetCellTypes(DM dm, const Fine &f)
+{
+  DMLabel label;
+  PetscFunctionBeginUser;
+  PetscCall(DMCreateLabel(dm, "celltype"));
+  PetscCall(DMGetLabel(dm, "celltype", &label));
+  const std::pair<DMPolytopeType, std::pair<PetscInt, PetscInt>> strata[] = {{f.dim == 2 ? DM_POLYTOPE_TRIANGLE : DM_POLYTOPE_TETRAHEDRON, {0, f.nc}},
+                                                                             {DM_POLYTOPE_POINT, {f.Vertex(0), f.Vertex(f.nv)}},
+                                                                             {DM_POLYTOPE_TRIANGLE, {f.Tri(0), f.Tri(f.nt)}},
+                                                                             {DM_POLYTOPE_SEGMENT, {f.Edge(0), f.End()}}};
+  for (const auto &s : strata) {
+    IS is;
+    if (s.second.second == s.second.first && s.first == DM_POLYTOPE_TRIANGLE && f.dim == 2) continue;
+    PetscCall(ISCreateStride(PETSC_COMM_SELF, s.second.second - s.second.first, s.second.first, 1, &is));
+    PetscCall(DMLabelSetStratumIS(label, s.first, is));
+    PetscCall(ISDestroy(&is));
+  }
+  PetscFunctionReturn(0);
+}
+
+// The point star forest: the fine points lying in a shared coarse point are shared with the same ranks,
+// with the root on the coarse point's root rank. Both sides list them in the same order (by depth, then by
+// the global numbers of their vertices), so the owner's list, sent through the coarse forest, pairs them.
+PetscErrorCode SetPointSF(DM coarse, DM dm, const Coarse &m, const Sharing &sh, const std::vector<PetscInt> &gnum, const Fine &f)
+{
+  MPI_Comm comm = PetscObjectComm((PetscObject)coarse);
+  PetscSF  fsf;
+  PetscFunctionBeginUser;
+  if (!sh.sf) PetscFunctionReturn(0);
+  // (carrier, depth, global vertex numbers, fine point) of every fine point in a shared coarse point
+  using Entry = std::tuple<PetscInt, PetscInt, std::array<PetscInt, 3>, PetscInt>;
+  std::vector<Entry> entries;
+  const auto         global = [&](PetscInt i) { return gnum[f.vertexId[i]]; };
+  for (PetscInt i = 0; i < f.nv; ++i) {
+    const PetscInt q = VertexCarrier(m, f.vertexId[i]);
+    if (sh.shared[q]) entries.push_back({q, 0, {global(i), -1, -1}, f.Vertex(i)});
+  }
+  for (PetscInt j = 0; j < f.ne; ++j) {
+    const PetscInt q = f.edgeCarrier[j];
+    if (q >= 0 && sh.shared[q]) entries.push_back({q, 1, {global(f.edgeVerts[2 * j]), global(f.edgeVerts[2 * j + 1]), -1}, f.Edge(j)});
+  }
+  for (PetscInt j = 0; j < f.nt; ++j) {
+    const PetscInt q = f.triCarrier[j];
+    if (q >= 0 && sh.shared[q]) entries.push_back({q, 2, {global(f.triVerts[3 * j]), global(f.triVerts[3 * j + 1]), global(f.triVerts[3 * j + 2])}, f.Tri(j)});
+  }
+  std::sort(entries.begin(), entries.end());
+  // Groups by carrier; the owner's groups get compact numbers, which the leaves learn.
+  constexpr PetscInt    kBlock = 8; // a count and at most 7 points (a face: 4 triangles and 3 edges)
+  std::vector<PetscInt> groupStart, compact(m.pE, -1), remoteCompact;
+  for (size_t i = 0; i < entries.size(); ++i)
+    if (i == 0 || std::get<0>(entries[i]) != std::get<0>(entries[i - 1])) groupStart.push_back((PetscInt)i);
+  groupStart.push_back((PetscInt)entries.size());
+  std::vector<PetscInt> blocks;
+  PetscInt              numRoots = 0, numLeaves = 0;
+  for (size_t g = 0; g + 1 < groupStart.size(); ++g) {
+    const PetscInt q = std::get<0>(entries[groupStart[g]]), n = groupStart[g + 1] - groupStart[g];
+    PetscCheck(n < kBlock, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: %" PetscInt_FMT " fine points in coarse point %" PetscInt_FMT, n, q);
+    if (sh.leaf[q] >= 0) {
+      ++numLeaves;
+      continue;
+    }
+    compact[q] = numRoots++;
+    blocks.push_back(n);
+    for (PetscInt i = 0; i < kBlock - 1; ++i) blocks.push_back(i < n ? std::get<3>(entries[groupStart[g] + i]) : -1);
+  }
+  remoteCompact = compact;
+  PetscCall(PetscSFBcastBegin(sh.sf, MPIU_INT, compact.data(), remoteCompact.data(), MPI_REPLACE));
+  PetscCall(PetscSFBcastEnd(sh.sf, MPIU_INT, compact.data(), remoteCompact.data(), MPI_REPLACE));
+  std::vector<PetscSFNode> groupRoots;
+  for (size_t g = 0; g + 1 < groupStart.size(); ++g) {
+    const PetscInt q = std::get<0>(entries[groupStart[g]]);
+    if (sh.leaf[q] >= 0) groupRoots.push_back({sh.remote[sh.leaf[q]].rank, remoteCompact[q]});
+  }
+  PetscSF      gsf;
+  MPI_Datatype block;
+  PetscCall(PetscSFCreate(comm, &gsf));
+  PetscCall(PetscSFSetGraph(gsf, numRoots, numLeaves, NULL, PETSC_COPY_VALUES, groupRoots.data(), PETSC_COPY_VALUES));
+  std::vector<PetscInt> theirs(kBlock * numLeaves, -1);
+  PetscCallMPI(MPI_Type_contiguous(kBlock, MPIU_INT, &block));
+  PetscCallMPI(MPI_Type_commit(&block));
+  PetscCall(PetscSFBcastBegin(gsf, block, blocks.data(), theirs.data(), MPI_REPLACE));
+  PetscCall(PetscSFBcastEnd(gsf, block, blocks.data(), theirs.data(), MPI_REPLACE));
+  PetscCallMPI(MPI_Type_free(&block));
+  PetscCall(PetscSFDestroy(&gsf));
+  std::vector<std::pair<PetscInt, PetscSFNode>> leaves;
+  for (size_t g = 0, l = 0; g + 1 < groupStart.size(); ++g) {
+    const PetscInt q = std::get<0>(entries[groupStart[g]]), n = groupStart[g + 1] - groupStart[g];
+    if (sh.leaf[q] < 0) continue;
+    const PetscInt *their = &theirs[kBlock * l++];
+    PetscCheck(their[0] == n, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: shared point %" PetscInt_FMT " has %" PetscInt_FMT " fine points here, %" PetscInt_FMT " on its owner", q, n, their[0]);
+    for (PetscInt i = 0; i < n; ++i) leaves.push_back({std::get<3>(entries[groupStart[g] + i]), {sh.remote[sh.leaf[q]].rank, their[1 + i]}});
+  }
+  std::sort(leaves.begin(), leaves.end(), [](const auto &a, const auto &b) { return a.first < b.first; });
+  std::vector<PetscInt>    ilocal(leaves.size());
+  std::vector<PetscSFNode> iremote(leaves.size());
+  for (size_t i = 0; i < leaves.size(); ++i) ilocal[i] = leaves[i].first, iremote[i] = leaves[i].second;
+  PetscCall(PetscSFCreate(comm, &fsf));
+  PetscCall(PetscSFSetGraph(fsf, f.End(), (PetscInt)leaves.size(), ilocal.data(), PETSC_COPY_VALUES, iremote.data(), PETSC_COPY_VALUES));
+  PetscCall(DMSetPointSF(dm, fsf));
+  PetscCall(PetscSFDestroy(&fsf));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SetCoordinates(DM dm, const Coarse &m, const Children &ch, const Fine &f)
+{
+  PetscSection sec;
+  Vec          vec;
+  PetscScalar *x;
+  PetscFunctionBeginUser;
+  PetscCall(DMSetCoordinateDim(dm, m.cdim));
+  PetscCall(PetscSectionCreate(PetscObjectComm((PetscObject)dm), &sec));
+  PetscCall(PetscSectionSetNumFields(sec, 1));
+  PetscCall(PetscSectionSetFieldComponents(sec, 0, m.cdim));
+  PetscCall(PetscSectionSetChart(sec, f.Vertex(0), f.Vertex(f.nv)));
+  for (PetscInt i = 0; i < f.nv; ++i) {
+    PetscCall(PetscSectionSetDof(sec, f.Vertex(i), m.cdim));
+    PetscCall(PetscSectionSetFieldDof(sec, f.Vertex(i), 0, m.cdim));
+  }
+  PetscCall(PetscSectionSetUp(sec));
+  PetscCall(DMSetCoordinateSection(dm, m.cdim, sec));
+  PetscCall(VecCreateSeq(PETSC_COMM_SELF, f.nv * m.cdim, &vec));
+  PetscCall(VecSetBlockSize(vec, m.cdim));
+  PetscCall(PetscObjectSetName((PetscObject)vec, "coordinates"));
+  PetscCall(VecGetArray(vec, &x));
+  for (PetscInt i = 0; i < f.nv; ++i)
+    for (PetscInt d = 0; d < m.cdim; ++d) x[i * m.cdim + d] = ch.x[3 * f.vertexId[i] + d];
+  PetscCall(VecRestoreArray(vec, &x));
+  PetscCall(DMSetCoordinatesLocal(dm, vec));
+  PetscCall(VecDestroy(&vec));
+  PetscCall(PetscSectionDestroy(&sec));
+  PetscFunctionReturn(0);
+}
+
+// Every label but depth and cell type: a child carries its parent's values, a fine face lying in a coarse
+// face that face's values. (Values on coarse edges and vertices are not carried: the solver reads cells
+// and faces only.)
+PetscErrorCode CarryLabels(DM coarse, DM fine, const Coarse &m, const Fine &f)
 {
   PetscInt numLabels;
   PetscFunctionBeginUser;
@@ -319,69 +671,41 @@ PetscErrorCode CarryLabels(DM coarse, DM fine, const Coarse &m, const std::vecto
     PetscCall(DMLabelGetDefaultValue(clabel, &defaultValue));
     PetscCall(DMLabelSetDefaultValue(flabel, defaultValue));
     // (point, value) of the labelled coarse cells and faces, sorted by point.
-    std::vector<std::pair<PetscInt, PetscInt>> cells, faces;
+    std::vector<std::pair<PetscInt, PetscInt>> values;
     IS                                         valueIS;
     PetscInt                                   nv;
-    const PetscInt                            *values;
+    const PetscInt                            *vals;
     PetscCall(DMLabelGetValueIS(clabel, &valueIS));
     PetscCall(ISGetLocalSize(valueIS, &nv));
-    PetscCall(ISGetIndices(valueIS, &values));
+    PetscCall(ISGetIndices(valueIS, &vals));
     for (PetscInt i = 0; i < nv; ++i) {
       IS              pointIS;
       PetscInt        np;
       const PetscInt *points;
-      PetscCall(DMLabelGetStratumIS(clabel, values[i], &pointIS));
+      PetscCall(DMLabelGetStratumIS(clabel, vals[i], &pointIS));
       if (!pointIS) continue;
       PetscCall(ISGetLocalSize(pointIS, &np));
       PetscCall(ISGetIndices(pointIS, &points));
-      for (PetscInt j = 0; j < np; ++j) {
-        if (points[j] >= m.cS && points[j] < m.cE) cells.push_back({points[j], values[i]});
-        if (points[j] >= m.fS && points[j] < m.fE) faces.push_back({points[j], values[i]});
-      }
+      for (PetscInt j = 0; j < np; ++j)
+        if ((points[j] >= m.cS && points[j] < m.cE) || (points[j] >= m.fS && points[j] < m.fE)) values.push_back({points[j], vals[i]});
       PetscCall(ISRestoreIndices(pointIS, &points));
       PetscCall(ISDestroy(&pointIS));
     }
-    PetscCall(ISRestoreIndices(valueIS, &values));
+    PetscCall(ISRestoreIndices(valueIS, &vals));
     PetscCall(ISDestroy(&valueIS));
-    for (const auto &cv : cells)
-      for (PetscInt k = ch.start[cv.first - m.cS]; k < ch.start[cv.first - m.cS + 1]; ++k) PetscCall(DMLabelSetValue(flabel, k, cv.second));
-    std::sort(faces.begin(), faces.end());
-    for (PetscInt c = m.cS; c < m.cE && !faces.empty(); ++c) {
-      const PetscInt *cone;
-      PetscCall(DMPlexGetCone(coarse, c, &cone));
-      for (PetscInt f = 0; f <= m.dim; ++f) {
-        const auto range = std::equal_range(faces.begin(), faces.end(), std::make_pair(cone[f], PETSC_MIN_INT), [](const auto &a, const auto &b) { return a.first < b.first; });
-        if (range.first == range.second) continue;
-        // The fine vertices on the face: its vertices and the midpoints of its marked edges.
-        std::vector<PetscInt> on;
-        PetscInt              fv[4];
-        PetscCall(SimplexVertices(coarse, cone[f], m.dim - 1, fv));
-        for (PetscInt k = 0; k < m.dim; ++k) on.push_back(fv[k] - m.vS);
-        const PetscInt *edges = &cone[f], *fcone;
-        PetscInt        ne    = 1;
-        if (m.dim == 3) {
-          PetscCall(DMPlexGetCone(coarse, cone[f], &fcone));
-          edges = fcone, ne = 3;
-        }
-        for (PetscInt k = 0; k < ne; ++k)
-          if (mark[edges[k] - m.eS]) on.push_back(m.NumVertices() + edges[k] - m.eS);
-        for (PetscInt k = ch.start[c - m.cS]; k < ch.start[c - m.cS + 1]; ++k) {
-          const PetscInt *t = &ch.verts[ch.nv * k];
-          for (PetscInt omit = 0; omit < ch.nv; ++omit) {
-            PetscInt join[3], n = 0;
-            for (PetscInt j = 0; j < ch.nv; ++j)
-              if (j != omit && std::find(on.begin(), on.end(), t[j]) != on.end()) join[n++] = finePoint[t[j]];
-            if (n != m.dim) continue;
-            PetscInt        numCovered;
-            const PetscInt *covered;
-            PetscCall(DMPlexGetFullJoin(fine, n, join, &numCovered, &covered));
-            PetscCheck(numCovered == 1, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: no face for a child of cell %" PetscInt_FMT, c);
-            for (auto it = range.first; it != range.second; ++it) PetscCall(DMLabelSetValue(flabel, covered[0], it->second));
-            PetscCall(DMPlexRestoreJoin(fine, n, join, &numCovered, &covered));
-          }
-        }
-      }
-    }
+    if (values.empty()) continue;
+    std::sort(values.begin(), values.end());
+    const auto carry = [&](PetscInt q, PetscInt p) -> PetscErrorCode {
+      PetscFunctionBeginUser;
+      auto it = std::lower_bound(values.begin(), values.end(), std::make_pair(q, PETSC_MIN_INT));
+      for (; it != values.end() && it->first == q; ++it) PetscCall(DMLabelSetValue(flabel, p, it->second));
+      PetscFunctionReturn(0);
+    };
+    for (PetscInt t = 0; t < f.nc; ++t) PetscCall(carry(m.cS + f.parentOf[t], t));
+    const bool                   edgesAreFaces = f.dim == 2;
+    const std::vector<PetscInt> &carrier       = edgesAreFaces ? f.edgeCarrier : f.triCarrier;
+    for (PetscInt j = 0; j < (PetscInt)carrier.size(); ++j)
+      if (carrier[j] >= m.fS && carrier[j] < m.fE) PetscCall(carry(carrier[j], edgesAreFaces ? f.Edge(j) : f.Tri(j)));
   }
   PetscFunctionReturn(0);
 }
@@ -390,49 +714,37 @@ PetscErrorCode CarryLabels(DM coarse, DM fine, const Coarse &m, const std::vecto
 
 PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked, DM *fine, std::vector<PetscInt> *parent)
 {
-  MPI_Comm  comm = PetscObjectComm((PetscObject)coarse);
-  Coarse    m;
-  Children  ch;
-  DM        dm;
+  Coarse   m;
+  Sharing  sh;
+  Children ch;
+  Fine     f;
+  DM       dm;
   PetscFunctionBeginUser;
   PetscCall(ReadCoarse(coarse, m));
   PetscCheck((PetscInt)marked.size() == m.NumCells(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "RefineMarkedBisection: %zu marks for %" PetscInt_FMT " cells", marked.size(), m.NumCells());
+  PetscCall(GetSharing(coarse, m, sh));
   const std::vector<PetscInt> rank = EdgeOrder(m);
   std::vector<char>           mark;
   PetscCall(CloseMarks(coarse, m, rank, marked, mark));
   Cut(m, rank, mark, ch);
+  std::vector<PetscInt> gnum;
+  PetscCall(NumberVertices(coarse, m, sh, mark, gnum));
+  FinePoints(m, mark, ch, gnum, f);
 
-  std::vector<PetscInt> gnum, owned;
-  PetscInt              numOwned;
-  PetscCall(NumberVertices(coarse, m, mark, gnum, &numOwned, owned));
-  std::vector<PetscReal> coords(m.cdim * numOwned);
-  for (PetscInt i = 0; i < numOwned; ++i)
-    for (PetscInt d = 0; d < m.cdim; ++d) coords[m.cdim * i + d] = ch.x[3 * owned[i] + d];
-  const PetscInt        numChildren = (PetscInt)ch.verts.size() / ch.nv;
-  std::vector<PetscInt> cells(ch.verts.size());
-  for (size_t i = 0; i < cells.size(); ++i) cells[i] = gnum[ch.verts[i]];
-  PetscCall(DMPlexCreateFromCellListParallelPetsc(comm, m.dim, numChildren, numOwned, PETSC_DETERMINE, ch.nv, PETSC_TRUE, cells.data(), m.cdim, coords.data(), NULL, NULL, &dm));
-
-  // PETSc numbers the local vertices by increasing global number (DMPlexBuildFromCellListParallel).
-  PetscInt vS, vE;
-  PetscCall(DMPlexGetDepthStratum(dm, 0, &vS, &vE));
-  std::vector<std::pair<PetscInt, PetscInt>> byNumber;
-  for (PetscInt id = 0; id < (PetscInt)gnum.size(); ++id)
-    if (gnum[id] >= 0) byNumber.push_back({gnum[id], id});
-  std::sort(byNumber.begin(), byNumber.end());
-  PetscCheck((PetscInt)byNumber.size() == vE - vS, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: %zu fine vertices, PETSc made %" PetscInt_FMT, byNumber.size(), vE - vS);
-  std::vector<PetscInt> finePoint(gnum.size(), -1);
-  for (size_t i = 0; i < byNumber.size(); ++i) finePoint[byNumber[i].second] = vS + (PetscInt)i;
-  PetscCall(CarryLabels(coarse, dm, m, mark, ch, finePoint));
-
+  PetscCall(DMCreate(PetscObjectComm((PetscObject)coarse), &dm));
+  PetscCall(DMSetType(dm, DMPLEX));
+  PetscCall(DMSetDimension(dm, m.dim));
+  PetscCall(SetCones(dm, ch, f));
+  PetscCall(DMPlexSymmetrize(dm));
+  PetscCall(SetCellTypes(dm, f));
+  PetscCall(DMPlexStratify(dm));
+  PetscCall(SetPointSF(coarse, dm, m, sh, gnum, f));
+  PetscCall(SetCoordinates(dm, m, ch, f));
+  PetscCall(CarryLabels(coarse, dm, m, f));
   const char *name;
   PetscCall(PetscObjectGetName((PetscObject)coarse, &name));
   PetscCall(PetscObjectSetName((PetscObject)dm, name));
-  if (parent) {
-    parent->resize(numChildren);
-    for (PetscInt c = 0; c < m.NumCells(); ++c)
-      for (PetscInt k = ch.start[c]; k < ch.start[c + 1]; ++k) (*parent)[k] = c;
-  }
+  if (parent) *parent = f.parentOf;
   *fine = dm;
   PetscFunctionReturn(0);
 }

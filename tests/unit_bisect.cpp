@@ -1,7 +1,8 @@
 // Unit tests of the refinement of marked cells by bisection (RefineMarkedBisection, bisect.cpp), in 2D
 // and 3D, on structured boxes (many edges of equal length: the tie-breaks decide) and on Gmsh meshes. The
 // checks are invariants and an independent serial computation:
-//   - PETSc's consistency checks (symmetry, skeleton, faces, geometry with positive Jacobians, point SF);
+//   - PETSc's consistency checks (symmetry, skeleton, faces, geometry with positive Jacobians, point SF,
+//     the same cones of shared points on every rank);
 //   - conformity: no face has more than two cells, and the boundary (faces with one cell, not shared with
 //     another rank) has the coarse boundary's area: a hanging vertex would leave faces with one cell inside
 //     the domain; the volume is the coarse volume;
@@ -248,7 +249,8 @@ static PetscErrorCode CheckStep(unit::Checker &ck, const std::string &tag, DM co
   PetscCall(DMPlexCheckFaces(*fine, 0));
   PetscCall(DMPlexCheckGeometry(*fine));
   PetscCall(DMPlexCheckPointSF(*fine, NULL, PETSC_FALSE));
-  ck.Check(true, tag + " passes DMPlexCheckSymmetry/Skeleton/Faces/Geometry/PointSF");
+  PetscCall(DMPlexCheckInterfaceCones(*fine));
+  ck.Check(true, tag + " passes DMPlexCheckSymmetry/Skeleton/Faces/Geometry/PointSF/InterfaceCones");
 
   Measures a, b;
   PetscCall(Measure(coarse, a));
