@@ -23,6 +23,7 @@
 // face is by global vertex numbers too, so shared points have the same cones on every rank.
 #include "signorini/localrefine.h"
 #include "signorini/mesh.h"
+#include "signorini/refine.h"
 
 #include <algorithm>
 #include <array>
@@ -514,27 +515,6 @@ PetscErrorCode SetCones(DM dm, const Children &ch, const Fine &f)
   PetscFunctionReturn(0);
 }
 
-// The cell-type label as contiguous strata (stride index sets), as refine.cpp makes it.
-PetscErrorCode SetCellTypes(DM dm, const Fine &f)
-{
-  DMLabel label;
-  PetscFunctionBeginUser;
-  PetscCall(DMCreateLabel(dm, "celltype"));
-  PetscCall(DMGetLabel(dm, "celltype", &label));
-  const std::pair<DMPolytopeType, std::pair<PetscInt, PetscInt>> strata[] = {{f.dim == 2 ? DM_POLYTOPE_TRIANGLE : DM_POLYTOPE_TETRAHEDRON, {0, f.nc}},
-                                                                             {DM_POLYTOPE_POINT, {f.Vertex(0), f.Vertex(f.nv)}},
-                                                                             {DM_POLYTOPE_TRIANGLE, {f.Tri(0), f.Tri(f.nt)}},
-                                                                             {DM_POLYTOPE_SEGMENT, {f.Edge(0), f.End()}}};
-  for (const auto &s : strata) {
-    IS is;
-    if (s.second.second == s.second.first && s.first == DM_POLYTOPE_TRIANGLE && f.dim == 2) continue;
-    PetscCall(ISCreateStride(PETSC_COMM_SELF, s.second.second - s.second.first, s.second.first, 1, &is));
-    PetscCall(DMLabelSetStratumIS(label, s.first, is));
-    PetscCall(ISDestroy(&is));
-  }
-  PetscFunctionReturn(0);
-}
-
 // The point star forest: the fine points lying in a shared coarse point are shared with the same ranks,
 // with the root on the coarse point's root rank. Both sides list them in the same order (by depth, then by
 // the global numbers of their vertices), so the owner's list, sent through the coarse forest, pairs them.
@@ -618,95 +598,37 @@ PetscErrorCode SetPointSF(DM coarse, DM dm, const Coarse &m, const Sharing &sh, 
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode SetCoordinates(DM dm, const Coarse &m, const Children &ch, const Fine &f)
-{
-  PetscSection sec;
-  Vec          vec;
-  PetscScalar *x;
-  PetscFunctionBeginUser;
-  PetscCall(DMSetCoordinateDim(dm, m.cdim));
-  PetscCall(PetscSectionCreate(PetscObjectComm((PetscObject)dm), &sec));
-  PetscCall(PetscSectionSetNumFields(sec, 1));
-  PetscCall(PetscSectionSetFieldComponents(sec, 0, m.cdim));
-  PetscCall(PetscSectionSetChart(sec, f.Vertex(0), f.Vertex(f.nv)));
-  for (PetscInt i = 0; i < f.nv; ++i) {
-    PetscCall(PetscSectionSetDof(sec, f.Vertex(i), m.cdim));
-    PetscCall(PetscSectionSetFieldDof(sec, f.Vertex(i), 0, m.cdim));
-  }
-  PetscCall(PetscSectionSetUp(sec));
-  PetscCall(DMSetCoordinateSection(dm, m.cdim, sec));
-  PetscCall(VecCreateSeq(PETSC_COMM_SELF, f.nv * m.cdim, &vec));
-  PetscCall(VecSetBlockSize(vec, m.cdim));
-  PetscCall(PetscObjectSetName((PetscObject)vec, "coordinates"));
-  PetscCall(VecGetArray(vec, &x));
-  for (PetscInt i = 0; i < f.nv; ++i)
-    for (PetscInt d = 0; d < m.cdim; ++d) x[i * m.cdim + d] = ch.x[3 * f.vertexId[i] + d];
-  PetscCall(VecRestoreArray(vec, &x));
-  PetscCall(DMSetCoordinatesLocal(dm, vec));
-  PetscCall(VecDestroy(&vec));
-  PetscCall(PetscSectionDestroy(&sec));
-  PetscFunctionReturn(0);
-}
-
 // Every label but depth and cell type: a child carries its parent's values, a fine face lying in a coarse
 // face that face's values. (Values on coarse edges and vertices are not carried: the solver reads cells
 // and faces only.)
 PetscErrorCode CarryLabels(DM coarse, DM fine, const Coarse &m, const Fine &f)
 {
-  PetscInt numLabels;
+  // The fine faces in each coarse face: faces[start[F - fS] .. start[F - fS + 1]).
+  const std::vector<PetscInt> &carrier = f.dim == 2 ? f.edgeCarrier : f.triCarrier;
+  std::vector<PetscInt>        start(m.fE - m.fS + 1, 0), faces;
+  for (PetscInt q : carrier)
+    if (q >= m.fS && q < m.fE) ++start[q - m.fS + 1];
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  faces.resize(start.back());
+  std::vector<PetscInt> fill(start.begin(), start.end() - 1);
+  for (PetscInt j = 0; j < (PetscInt)carrier.size(); ++j)
+    if (carrier[j] >= m.fS && carrier[j] < m.fE) faces[fill[carrier[j] - m.fS]++] = f.dim == 2 ? f.Edge(j) : f.Tri(j);
+  // The children of each coarse cell are contiguous (see Cut).
+  std::vector<PetscInt> children(m.NumCells() + 1, 0);
+  for (PetscInt c : f.parentOf) ++children[c + 1];
+  std::partial_sum(children.begin(), children.end(), children.begin());
   PetscFunctionBeginUser;
-  PetscCall(DMGetNumLabels(coarse, &numLabels));
-  for (PetscInt l = 0; l < numLabels; ++l) {
-    const char *name;
-    DMLabel     clabel, flabel;
-    PetscBool   isDepth, isType;
-    PetscCall(DMGetLabelName(coarse, l, &name));
-    PetscCall(PetscStrcmp(name, "depth", &isDepth));
-    PetscCall(PetscStrcmp(name, "celltype", &isType));
-    if (isDepth || isType) continue;
-    PetscCall(DMGetLabel(coarse, name, &clabel));
-    PetscCall(DMCreateLabel(fine, name));
-    PetscCall(DMGetLabel(fine, name, &flabel));
-    PetscInt defaultValue;
-    PetscCall(DMLabelGetDefaultValue(clabel, &defaultValue));
-    PetscCall(DMLabelSetDefaultValue(flabel, defaultValue));
-    // (point, value) of the labelled coarse cells and faces, sorted by point.
-    std::vector<std::pair<PetscInt, PetscInt>> values;
-    IS                                         valueIS;
-    PetscInt                                   nv;
-    const PetscInt                            *vals;
-    PetscCall(DMLabelGetValueIS(clabel, &valueIS));
-    PetscCall(ISGetLocalSize(valueIS, &nv));
-    PetscCall(ISGetIndices(valueIS, &vals));
-    for (PetscInt i = 0; i < nv; ++i) {
-      IS              pointIS;
-      PetscInt        np;
-      const PetscInt *points;
-      PetscCall(DMLabelGetStratumIS(clabel, vals[i], &pointIS));
-      if (!pointIS) continue;
-      PetscCall(ISGetLocalSize(pointIS, &np));
-      PetscCall(ISGetIndices(pointIS, &points));
-      for (PetscInt j = 0; j < np; ++j)
-        if ((points[j] >= m.cS && points[j] < m.cE) || (points[j] >= m.fS && points[j] < m.fE)) values.push_back({points[j], vals[i]});
-      PetscCall(ISRestoreIndices(pointIS, &points));
-      PetscCall(ISDestroy(&pointIS));
+  PetscCall(ForEachLabelStratum(coarse, fine, [&](DMLabel label, PetscInt value, const PetscInt *points, PetscInt n) -> PetscErrorCode {
+    PetscFunctionBeginUser;
+    for (PetscInt i = 0; i < n; ++i) {
+      const PetscInt q = points[i];
+      if (q >= m.cS && q < m.cE)
+        for (PetscInt t = children[q - m.cS]; t < children[q - m.cS + 1]; ++t) PetscCall(DMLabelSetValue(label, t, value));
+      if (q >= m.fS && q < m.fE)
+        for (PetscInt k = start[q - m.fS]; k < start[q - m.fS + 1]; ++k) PetscCall(DMLabelSetValue(label, faces[k], value));
     }
-    PetscCall(ISRestoreIndices(valueIS, &vals));
-    PetscCall(ISDestroy(&valueIS));
-    if (values.empty()) continue;
-    std::sort(values.begin(), values.end());
-    const auto carry = [&](PetscInt q, PetscInt p) -> PetscErrorCode {
-      PetscFunctionBeginUser;
-      auto it = std::lower_bound(values.begin(), values.end(), std::make_pair(q, PETSC_MIN_INT));
-      for (; it != values.end() && it->first == q; ++it) PetscCall(DMLabelSetValue(flabel, p, it->second));
-      PetscFunctionReturn(0);
-    };
-    for (PetscInt t = 0; t < f.nc; ++t) PetscCall(carry(m.cS + f.parentOf[t], t));
-    const bool                   edgesAreFaces = f.dim == 2;
-    const std::vector<PetscInt> &carrier       = edgesAreFaces ? f.edgeCarrier : f.triCarrier;
-    for (PetscInt j = 0; j < (PetscInt)carrier.size(); ++j)
-      if (carrier[j] >= m.fS && carrier[j] < m.fE) PetscCall(carry(carrier[j], edgesAreFaces ? f.Edge(j) : f.Tri(j)));
-  }
+    PetscFunctionReturn(0);
+  }));
   PetscFunctionReturn(0);
 }
 
@@ -736,10 +658,16 @@ PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked,
   PetscCall(DMSetDimension(dm, m.dim));
   PetscCall(SetCones(dm, ch, f));
   PetscCall(DMPlexSymmetrize(dm));
-  PetscCall(SetCellTypes(dm, f));
+  std::vector<CellTypeStratum> types = {{m.dim == 2 ? DM_POLYTOPE_TRIANGLE : DM_POLYTOPE_TETRAHEDRON, 0, f.nc}, {DM_POLYTOPE_POINT, f.Vertex(0), f.Vertex(f.nv)}, {DM_POLYTOPE_SEGMENT, f.Edge(0), f.End()}};
+  if (m.dim == 3) types.push_back({DM_POLYTOPE_TRIANGLE, f.Tri(0), f.Tri(f.nt)});
+  PetscCall(SetCellTypeStrata(dm, types));
   PetscCall(DMPlexStratify(dm));
   PetscCall(SetPointSF(coarse, dm, m, sh, gnum, f));
-  PetscCall(SetCoordinates(dm, m, ch, f));
+  {
+    std::vector<PetscReal> x(3 * f.nv);
+    for (PetscInt i = 0; i < f.nv; ++i) std::copy(&ch.x[3 * f.vertexId[i]], &ch.x[3 * f.vertexId[i]] + 3, &x[3 * i]);
+    PetscCall(SetVertexCoordinates(dm, m.cdim, f.Vertex(0), f.nv, x));
+  }
   PetscCall(CarryLabels(coarse, dm, m, f));
   const char *name;
   PetscCall(PetscObjectGetName((PetscObject)coarse, &name));
