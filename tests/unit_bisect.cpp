@@ -3,7 +3,8 @@
 // checks are invariants and an independent serial computation:
 //   - PETSc's consistency checks (symmetry, skeleton, faces, geometry with positive Jacobians, point SF,
 //     the same cones of shared points on every rank);
-//   - conformity: no face has more than two cells, and the boundary (faces with one cell, not shared with
+//   - conformity: no face has more than two cells, the cell complex has Euler characteristic 1 (a
+//     hanging vertex would add a face or an edge beside the ones it splits), and the boundary (faces with one cell, not shared with
 //     another rank) has the coarse boundary's area: a hanging vertex would leave faces with one cell inside
 //     the domain; the volume is the coarse volume;
 //   - labels: the area of each "Face Sets" value is the coarse one; every child has its parent's
@@ -11,8 +12,8 @@
 //   - the parent map: the children of a coarse cell fill it (their volumes sum to its volume and their
 //     centroids lie inside it);
 //   - the marked cells are refined, cells far from them are not;
-//   - on 2 ranks, the mesh is the one the same refinement makes of the whole mesh on one rank (the same
-//     cells: sorted centroids and volumes), also after repeated steps;
+//   - the mesh is the one the same refinement makes of the whole mesh on one rank with its points numbered
+//     backwards (the same cells: sorted centroids and volumes), also after repeated steps;
 //   - repeated refinement towards a corner keeps the shape: the worst aspect ratio stops growing.
 // With -bisect_time_faces n, it instead times one refinement of 10 % of the cells of a box of n^3 cubes
 // cut into 6 n^3 tetrahedra (not a test: a measurement).
@@ -74,11 +75,23 @@ static PetscErrorCode SharedPoints(DM dm, std::vector<char> &shared)
   PetscFunctionReturn(0);
 }
 
+static bool IsLeaf(DM dm, PetscInt p)
+{
+  PetscSF         sf;
+  PetscInt        nroots, nleaves, idx = -1;
+  const PetscInt *ilocal;
+  if (DMGetPointSF(dm, &sf) || PetscSFGetGraph(sf, &nroots, &nleaves, &ilocal, NULL) || nroots < 0) return false;
+  if (!ilocal) return p < nleaves;
+  PetscFindInt(p, nleaves, ilocal, &idx); // DMPlex keeps the leaves sorted
+  return idx >= 0;
+}
+
 // Global sums: volume, boundary area, area of the boundary faces of each "Face Sets" value 1..8, and the largest number of cells
 // of a face.
 struct Measures {
-  double volume = 0, boundary = 0, faceSets[9] = {0};
-  int    maxSupport = 0;
+  double   volume = 0, boundary = 0, faceSets[9] = {0};
+  int      maxSupport = 0;
+  PetscInt euler      = 0; // sum over depths d of (-1)^d (points of depth d, each counted on its owner)
 };
 
 static PetscErrorCode Measure(DM dm, Measures &m)
@@ -99,6 +112,13 @@ static PetscErrorCode Measure(DM dm, Measures &m)
     PetscCall(DMPlexComputeCellGeometryFVM(dm, c, &vol, NULL, NULL));
     m.volume += vol;
   }
+  PetscInt depth;
+  PetscCall(DMPlexGetDepth(dm, &depth));
+  for (PetscInt d = 0; d <= depth; ++d) {
+    PetscInt s, e;
+    PetscCall(DMPlexGetDepthStratum(dm, d, &s, &e));
+    for (PetscInt p = s; p < e; ++p) m.euler += (d % 2 ? -1 : 1) * !IsLeaf(dm, p);
+  }
   for (PetscInt f = fS; f < fE; ++f) {
     PetscInt  support, value = -1;
     PetscReal area, x[3];
@@ -114,6 +134,7 @@ static PetscErrorCode Measure(DM dm, Measures &m)
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &m.boundary, 1, MPI_DOUBLE, MPI_SUM, comm));
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, m.faceSets, 9, MPI_DOUBLE, MPI_SUM, comm));
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &m.maxSupport, 1, MPI_INT, MPI_MAX, comm));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &m.euler, 1, MPIU_INT, MPI_SUM, comm));
   PetscFunctionReturn(0);
 }
 
@@ -229,6 +250,30 @@ static PetscErrorCode EnsureCellSets(DM dm)
   PetscFunctionReturn(0);
 }
 
+// The same mesh with the points of each depth numbered backwards: a refinement that depended on the
+// numbering would differ from the one of the original.
+static PetscErrorCode Renumber(DM *dm)
+{
+  PetscInt pS, pE, depth;
+  IS       perm;
+  DM       pdm;
+  PetscFunctionBeginUser;
+  PetscCall(DMPlexGetChart(*dm, &pS, &pE));
+  PetscCall(DMPlexGetDepth(*dm, &depth));
+  std::vector<PetscInt> to(pE - pS);
+  for (PetscInt d = 0; d <= depth; ++d) {
+    PetscInt s, e;
+    PetscCall(DMPlexGetDepthStratum(*dm, d, &s, &e));
+    for (PetscInt p = s; p < e; ++p) to[p - pS] = s + e - 1 - p;
+  }
+  PetscCall(ISCreateGeneral(PETSC_COMM_SELF, pE - pS, to.data(), PETSC_COPY_VALUES, &perm));
+  PetscCall(DMPlexPermute(*dm, perm, &pdm));
+  PetscCall(ISDestroy(&perm));
+  PetscCall(DMDestroy(dm));
+  *dm = pdm;
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode CreateMesh(MPI_Comm comm, const MeshOptions &o, DM *dm)
 {
   MeshInfo info;
@@ -256,6 +301,7 @@ static PetscErrorCode CheckStep(unit::Checker &ck, const std::string &tag, DM co
   PetscCall(Measure(coarse, a));
   PetscCall(Measure(*fine, b));
   ck.Check(b.maxSupport <= 2, tag + " no face has more than two cells", "a face has %d", b.maxSupport);
+  ck.Check(b.euler == a.euler && a.euler == 1, tag + " conforming: Euler characteristic of the cell complex 1 (as the coarse mesh's)", "fine %d, coarse %d", (int)b.euler, (int)a.euler);
   ck.Close(b.boundary, a.boundary, 1e-12, tag + " conforming: boundary area unchanged (no hanging faces)");
   ck.Close(b.volume, a.volume, 1e-12, tag + " volume unchanged");
   double worst = 0;
@@ -308,16 +354,16 @@ struct Case {
   double      far;    // cells with centroid beyond this distance from the origin must stay whole
 };
 
-// Refines `steps` times (first by the radius, then the cells near the origin), checking each step; on 2 ranks
-// each step is compared with the same steps on the whole mesh on one rank.
+// Refines `steps` times (first by the radius, then the cells near the origin), checking each step; each
+// step is compared with the same steps on the whole mesh on one rank with its points numbered otherwise.
 static PetscErrorCode TestCase(unit::Checker &ck, const Case &k, PetscInt steps)
 {
-  PetscMPIInt size;
-  DM          dm, serial = nullptr;
+  DM dm, serial = nullptr;
   PetscFunctionBeginUser;
-  PetscCallMPI(MPI_Comm_size(PETSC_COMM_WORLD, &size));
   PetscCall(CreateMesh(PETSC_COMM_WORLD, k.o, &dm));
-  if (size > 1) PetscCall(CreateMesh(PETSC_COMM_SELF, k.o, &serial));
+  // The whole mesh on one rank, numbered otherwise (on 1 rank, the run compares with a renumbered copy).
+  PetscCall(CreateMesh(PETSC_COMM_SELF, k.o, &serial));
+  PetscCall(Renumber(&serial));
   PetscInt dim;
   PetscCall(DMGetDimension(dm, &dim));
   double aspect0;
@@ -342,7 +388,7 @@ static PetscErrorCode TestCase(unit::Checker &ck, const Case &k, PetscInt steps)
     PetscCall(CheckStep(ck, tag, dm, marked, far, &fine));
     PetscCall(DMDestroy(&dm));
     dm = fine;
-    if (serial) {
+    {
       DM                                 sfine;
       std::vector<std::array<double, 4>> a, b;
       PetscCall(Mark(serial, near, marked));
@@ -351,7 +397,7 @@ static PetscErrorCode TestCase(unit::Checker &ck, const Case &k, PetscInt steps)
       serial = sfine;
       PetscCall(AllCells(dm, a));
       PetscCall(AllCells(serial, b));
-      ck.Check(a == b, tag + " the same cells as on one rank", "%zu cells, %zu on one rank", a.size(), b.size());
+      ck.Check(a == b, tag + " the same cells as on one rank, numbered otherwise", "%zu cells, %zu on one rank", a.size(), b.size());
     }
     double worst;
     PetscCall(WorstAspect(dm, &worst));
@@ -419,7 +465,11 @@ int main(int argc, char **argv)
   cases.push_back(c);
   c.name = "box 8x8 crossed", c.o.diagonal = Diagonal::Crossed;
   cases.push_back(c);
-  c.name = "box 4x4x4 tetrahedra", c.o.dim = 3, c.o.faces[2] = 4, c.o.faces[0] = c.o.faces[1] = 4, c.radius = 0.4, c.far = 1.0;
+  c.name = "box 4x4 backslash refined once", c.o.diagonal = Diagonal::Backslash, c.o.faces[0] = c.o.faces[1] = 4, c.o.refine = 1;
+  cases.push_back(c);
+  c.name = "box 4x4x4 tetrahedra", c.o.dim = 3, c.o.faces[2] = 4, c.o.faces[0] = c.o.faces[1] = 4, c.o.refine = 0, c.radius = 0.4, c.far = 1.0;
+  cases.push_back(c);
+  c.name = "box 2x2x2 tetrahedra refined once", c.o.faces[0] = c.o.faces[1] = c.o.faces[2] = 2, c.o.refine = 1;
   cases.push_back(c);
   Case square;
   square.name = "gmsh square with Cell Sets", square.o.file = std::string(SIGNORINI_TEST_DATA) + "/square.msh", square.radius = 0.3, square.far = 0.8;
