@@ -394,22 +394,34 @@ PetscInt Carrier(const Coarse &m, const std::vector<char> &mark, PetscInt c, con
   return -1;
 }
 
-// Numbers the distinct keys (sorted vertex sets) of `occ` (key, occurrence) in increasing order: idOf[occurrence]
-// = number, `verts` gets each key once, `first` an occurrence of each.
+// Numbers the distinct keys (sorted vertex sets, one per occurrence) in increasing order: idOf[occurrence]
+// = number, `verts` gets each key once, `first` an occurrence of each. A counting sort by the first vertex,
+// then small sorts within each vertex's bucket: several times faster than one sort of all occurrences.
 template <size_t N>
-void Distinct(std::vector<std::pair<std::array<PetscInt, N>, PetscInt>> &occ, std::vector<PetscInt> &idOf, std::vector<PetscInt> &verts, std::vector<PetscInt> &first)
+void Distinct(const std::vector<std::array<PetscInt, N>> &key, PetscInt numVertices, std::vector<PetscInt> &idOf, std::vector<PetscInt> &verts, std::vector<PetscInt> &first)
 {
-  std::sort(occ.begin(), occ.end());
-  idOf.assign(occ.size(), -1);
+  const PetscInt        n = (PetscInt)key.size();
+  std::vector<PetscInt> start(numVertices + 1, 0), order(n);
+  for (const auto &k : key) ++start[k[0] + 1];
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  {
+    std::vector<PetscInt> fill(start.begin(), start.end() - 1);
+    for (PetscInt o = 0; o < n; ++o) order[fill[key[o][0]]++] = o;
+  }
+  idOf.assign(n, -1);
   verts.clear(), first.clear();
   PetscInt id = -1;
-  for (size_t i = 0; i < occ.size(); ++i) {
-    if (i == 0 || occ[i].first != occ[i - 1].first) {
-      ++id;
-      verts.insert(verts.end(), occ[i].first.begin(), occ[i].first.end());
-      first.push_back(occ[i].second);
+  for (PetscInt v = 0; v < numVertices; ++v) {
+    std::sort(order.begin() + start[v], order.begin() + start[v + 1], [&](PetscInt a, PetscInt b) { return key[a] < key[b]; });
+    for (PetscInt i = start[v]; i < start[v + 1]; ++i) {
+      const PetscInt o = order[i];
+      if (i == start[v] || key[o] != key[order[i - 1]]) {
+        ++id;
+        verts.insert(verts.end(), key[o].begin(), key[o].end());
+        first.push_back(o);
+      }
+      idOf[o] = id;
     }
-    idOf[occ[i].second] = id;
   }
 }
 
@@ -433,13 +445,13 @@ void FinePoints(const Coarse &m, const std::vector<char> &mark, const Children &
   const auto fineVertex = [&](PetscInt t, PetscInt i) { return f.vertexOf[ch.verts[nb * t + i]]; };
   std::vector<PetscInt> first, ids(3);
   {
-    std::vector<std::pair<std::array<PetscInt, 2>, PetscInt>> occ(nce * f.nc);
+    std::vector<std::array<PetscInt, 2>> key(nce * f.nc);
     for (PetscInt t = 0; t < f.nc; ++t)
       for (PetscInt k = 0; k < nce; ++k) {
         const PetscInt a = fineVertex(t, kPair[k][0]), b = fineVertex(t, kPair[k][1]);
-        occ[nce * t + k] = {{std::min(a, b), std::max(a, b)}, nce * t + k};
+        key[nce * t + k] = {std::min(a, b), std::max(a, b)};
       }
-    Distinct<2>(occ, f.childEdge, f.edgeVerts, first);
+    Distinct<2>(key, f.nv, f.childEdge, f.edgeVerts, first);
   }
   f.ne = (PetscInt)first.size();
   f.edgeCarrier.resize(f.ne);
@@ -449,14 +461,13 @@ void FinePoints(const Coarse &m, const std::vector<char> &mark, const Children &
   }
   if (m.dim == 2) return;
   {
-    std::vector<std::pair<std::array<PetscInt, 3>, PetscInt>> occ(4 * f.nc);
+    std::vector<std::array<PetscInt, 3>> key(4 * f.nc);
     for (PetscInt t = 0; t < f.nc; ++t)
       for (PetscInt k = 0; k < 4; ++k) {
-        std::array<PetscInt, 3> key = {fineVertex(t, kRefFace[k][0]), fineVertex(t, kRefFace[k][1]), fineVertex(t, kRefFace[k][2])};
-        std::sort(key.begin(), key.end());
-        occ[4 * t + k] = {key, 4 * t + k};
+        key[4 * t + k] = {fineVertex(t, kRefFace[k][0]), fineVertex(t, kRefFace[k][1]), fineVertex(t, kRefFace[k][2])};
+        std::sort(key[4 * t + k].begin(), key[4 * t + k].end());
       }
-    Distinct<3>(occ, f.childTri, f.triVerts, first);
+    Distinct<3>(key, f.nv, f.childTri, f.triVerts, first);
   }
   f.nt = (PetscInt)first.size();
   f.triCarrier.resize(f.nt);
