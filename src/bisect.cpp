@@ -142,27 +142,56 @@ std::vector<PetscInt> EdgeOrder(const Coarse &m)
   return rank;
 }
 
+// How the coarse points are shared with other ranks (the charts of a DMPlex start at 0).
+struct Sharing {
+  PetscSF            sf = nullptr;     // the point star forest; null: nothing is shared
+  std::vector<PetscInt> leaf;          // over the chart: index in the graph's leaves, or -1
+  std::vector<char>  shared;           // over the chart: a leaf, or a root with leaves
+  const PetscSFNode *remote = nullptr; // the graph's roots of the leaves
+};
+
+PetscErrorCode GetSharing(DM dm, const Coarse &m, Sharing &sh)
+{
+  PetscInt        nroots, nleaves;
+  const PetscInt *ilocal, *degree;
+  PetscFunctionBeginUser;
+  PetscCheck(m.pS == 0, PETSC_COMM_SELF, PETSC_ERR_SUP, "RefineMarkedBisection: chart starts at %" PetscInt_FMT, m.pS);
+  sh.leaf.assign(m.pE, -1);
+  sh.shared.assign(m.pE, 0);
+  PetscCall(DMGetPointSF(dm, &sh.sf));
+  PetscCall(PetscSFGetGraph(sh.sf, &nroots, &nleaves, &ilocal, &sh.remote));
+  if (nroots < 0) {
+    sh.sf = nullptr;
+    PetscFunctionReturn(0);
+  }
+  for (PetscInt l = 0; l < nleaves; ++l) {
+    const PetscInt p = ilocal ? ilocal[l] : l;
+    sh.leaf[p] = l, sh.shared[p] = 1;
+  }
+  PetscCall(PetscSFComputeDegreeBegin(sh.sf, &degree));
+  PetscCall(PetscSFComputeDegreeEnd(sh.sf, &degree));
+  for (PetscInt p = 0; p < nroots; ++p)
+    if (degree[p]) sh.shared[p] = 1;
+  PetscFunctionReturn(0);
+}
+
 // The owner's verdict on every shared edge: the marks are or-ed into the owner and sent back. Returns the
 // edges whose mark this rank learnt from others.
-PetscErrorCode SyncMarks(DM dm, const Coarse &m, std::vector<char> &mark, std::vector<PetscInt> &learnt)
+PetscErrorCode SyncMarks(const Coarse &m, const Sharing &sh, std::vector<char> &mark, std::vector<PetscInt> &learnt)
 {
-  PetscSF  sf;
-  PetscInt nroots;
   PetscFunctionBeginUser;
   learnt.clear();
-  PetscCall(DMGetPointSF(dm, &sf));
-  PetscCall(PetscSFGetGraph(sf, &nroots, NULL, NULL, NULL));
-  if (nroots < 0) PetscFunctionReturn(0);
-  std::vector<int> leaf(m.pE - m.pS, 0), root, back;
-  for (PetscInt e = 0; e < m.NumEdges(); ++e) leaf[m.eS + e - m.pS] = mark[e];
+  if (!sh.sf) PetscFunctionReturn(0);
+  std::vector<int> leaf(m.pE, 0), root, back;
+  for (PetscInt e = 0; e < m.NumEdges(); ++e) leaf[m.eS + e] = mark[e];
   root = leaf;
-  PetscCall(PetscSFReduceBegin(sf, MPI_INT, leaf.data(), root.data(), MPI_MAX));
-  PetscCall(PetscSFReduceEnd(sf, MPI_INT, leaf.data(), root.data(), MPI_MAX));
+  PetscCall(PetscSFReduceBegin(sh.sf, MPI_INT, leaf.data(), root.data(), MPI_MAX));
+  PetscCall(PetscSFReduceEnd(sh.sf, MPI_INT, leaf.data(), root.data(), MPI_MAX));
   back = root;
-  PetscCall(PetscSFBcastBegin(sf, MPI_INT, root.data(), back.data(), MPI_REPLACE));
-  PetscCall(PetscSFBcastEnd(sf, MPI_INT, root.data(), back.data(), MPI_REPLACE));
+  PetscCall(PetscSFBcastBegin(sh.sf, MPI_INT, root.data(), back.data(), MPI_REPLACE));
+  PetscCall(PetscSFBcastEnd(sh.sf, MPI_INT, root.data(), back.data(), MPI_REPLACE));
   for (PetscInt e = 0; e < m.NumEdges(); ++e)
-    if (back[m.eS + e - m.pS] && !mark[e]) {
+    if (back[m.eS + e] && !mark[e]) {
       mark[e] = 1;
       learnt.push_back(e);
     }
@@ -170,9 +199,8 @@ PetscErrorCode SyncMarks(DM dm, const Coarse &m, std::vector<char> &mark, std::v
 }
 
 // Rivara's closure of the marks (see the top of the file), with shared edges agreed between ranks.
-PetscErrorCode CloseMarks(DM dm, const Coarse &m, const std::vector<PetscInt> &rank, const std::vector<char> &marked, std::vector<char> &mark)
+PetscErrorCode CloseMarks(MPI_Comm comm, const Coarse &m, const Sharing &sh, const std::vector<PetscInt> &rank, const std::vector<char> &marked, std::vector<char> &mark)
 {
-  MPI_Comm comm = PetscObjectComm((PetscObject)dm);
   const PetscInt nc = m.NumCells(), ne = m.NumEdges();
   std::vector<PetscInt> longest(nc), starStart(ne + 1, 0), star(m.nce * nc), work;
   PetscFunctionBeginUser;
@@ -200,7 +228,7 @@ PetscErrorCode CloseMarks(DM dm, const Coarse &m, const std::vector<PetscInt> &r
       for (PetscInt i = starStart[e]; i < starStart[e + 1]; ++i) markEdge(longest[star[i]]);
     }
     std::vector<PetscInt> learnt;
-    PetscCall(SyncMarks(dm, m, mark, learnt));
+    PetscCall(SyncMarks(m, sh, mark, learnt));
     work = learnt;
     int any = !work.empty();
     PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &any, 1, MPI_INT, MPI_LOR, comm));
@@ -209,7 +237,8 @@ PetscErrorCode CloseMarks(DM dm, const Coarse &m, const std::vector<PetscInt> &r
   PetscFunctionReturn(0);
 }
 
-// Fine vertices of one rank, by local id: coarse vertex v is v, the midpoint of edge e is nV + e.
+// The children of the coarse cells of one rank, by the local ids of their vertices: coarse vertex v is
+// v - vS, the midpoint of edge e is nV + e - eS.
 struct Children {
   PetscInt              nv = 0;  // vertices per child
   std::vector<PetscInt> verts;   // nv per child, local ids
@@ -227,8 +256,8 @@ PetscReal Det(const Coarse &m, const std::vector<PetscReal> &x, const PetscInt *
 }
 
 // Cuts every cell by its marked edges in the global order, and turns each child to PETSc's orientation
-// (triangles counter-clockwise, tetrahedra with det[v1 - v0, v2 - v0, v3 - v0] < 0) so that the cell
-// list gives cells of positive Jacobian.
+// (triangles counter-clockwise, tetrahedra with det[v1 - v0, v2 - v0, v3 - v0] < 0): with the cones of
+// SetCones, cells of positive Jacobian.
 void Cut(const Coarse &m, const std::vector<PetscInt> &rank, const std::vector<char> &mark, Children &ch)
 {
   const PetscInt nV = m.NumVertices(), nb = m.dim + 1;
@@ -269,39 +298,6 @@ void Cut(const Coarse &m, const std::vector<PetscInt> &rank, const std::vector<c
     }
     ch.start.push_back((PetscInt)(ch.verts.size() / nb));
   }
-}
-
-// How the coarse points are shared with other ranks (the charts of a DMPlex start at 0).
-struct Sharing {
-  PetscSF            sf = nullptr;     // the point star forest; null: nothing is shared
-  std::vector<PetscInt> leaf;          // over the chart: index in the graph's leaves, or -1
-  std::vector<char>  shared;           // over the chart: a leaf, or a root with leaves
-  const PetscSFNode *remote = nullptr; // the graph's roots of the leaves
-};
-
-PetscErrorCode GetSharing(DM dm, const Coarse &m, Sharing &sh)
-{
-  PetscInt        nroots, nleaves;
-  const PetscInt *ilocal, *degree;
-  PetscFunctionBeginUser;
-  PetscCheck(m.pS == 0, PETSC_COMM_SELF, PETSC_ERR_SUP, "RefineMarkedBisection: chart starts at %" PetscInt_FMT, m.pS);
-  sh.leaf.assign(m.pE, -1);
-  sh.shared.assign(m.pE, 0);
-  PetscCall(DMGetPointSF(dm, &sh.sf));
-  PetscCall(PetscSFGetGraph(sh.sf, &nroots, &nleaves, &ilocal, &sh.remote));
-  if (nroots < 0) {
-    sh.sf = nullptr;
-    PetscFunctionReturn(0);
-  }
-  for (PetscInt l = 0; l < nleaves; ++l) {
-    const PetscInt p = ilocal ? ilocal[l] : l;
-    sh.leaf[p] = l, sh.shared[p] = 1;
-  }
-  PetscCall(PetscSFComputeDegreeBegin(sh.sf, &degree));
-  PetscCall(PetscSFComputeDegreeEnd(sh.sf, &degree));
-  for (PetscInt p = 0; p < nroots; ++p)
-    if (degree[p]) sh.shared[p] = 1;
-  PetscFunctionReturn(0);
 }
 
 // The coarse point of a fine vertex (local id): the vertex itself, or the edge of a midpoint.
@@ -658,7 +654,7 @@ PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked,
   PetscCall(GetSharing(coarse, m, sh));
   const std::vector<PetscInt> rank = EdgeOrder(m);
   std::vector<char>           mark;
-  PetscCall(CloseMarks(coarse, m, rank, marked, mark));
+  PetscCall(CloseMarks(PetscObjectComm((PetscObject)coarse), m, sh, rank, marked, mark));
   Cut(m, rank, mark, ch);
   std::vector<PetscInt> gnum;
   PetscCall(NumberVertices(coarse, m, sh, mark, gnum));
