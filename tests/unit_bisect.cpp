@@ -3,10 +3,10 @@
 // checks are invariants and an independent serial computation:
 //   - PETSc's consistency checks (symmetry, skeleton, faces, geometry with positive Jacobians, point SF,
 //     the same cones of shared points on every rank);
-//   - conformity: no face has more than two cells, the cell complex has Euler characteristic 1 (a
-//     hanging vertex would add a face or an edge beside the ones it splits), and the boundary (faces with one cell, not shared with
-//     another rank) has the coarse boundary's area: a hanging vertex would leave faces with one cell inside
-//     the domain; the volume is the coarse volume;
+//   - conformity: no face has more than two cells; the cell complex has Euler characteristic 1 (a
+//     hanging vertex would add a face or an edge beside the ones it splits); the boundary (faces with one
+//     cell, not shared with another rank) has the coarse boundary's area (a hanging vertex would leave
+//     faces with one cell inside the domain); the volume is the coarse volume;
 //   - labels: the area of each "Face Sets" value is the coarse one; every child has its parent's
 //     "Cell Sets" value;
 //   - the parent map: the children of a coarse cell fill it (their volumes sum to its volume and their
@@ -373,12 +373,12 @@ static PetscErrorCode TestCase(unit::Checker &ck, const Case &k, PetscInt steps)
     const Marker near = [&](const PetscReal *x, const std::vector<std::array<double, 3>> &v) {
       if (s == 0) return Distance(x, dim) < k.radius;
       // then the cells closer to the origin than their diameter: a mesh graded towards the corner
-      double near = 1e300, diameter = 0;
+      double closest = 1e300, diameter = 0;
       for (const auto &p : v) {
-        near = std::min(near, std::hypot(p[0], p[1], p[2]));
+        closest = std::min(closest, std::hypot(p[0], p[1], p[2]));
         for (const auto &q : v) diameter = std::max(diameter, std::hypot(p[0] - q[0], p[1] - q[1], p[2] - q[2]));
       }
-      return near < diameter;
+      return closest < diameter;
     };
     const Marker far = [&](const PetscReal *x, const std::vector<std::array<double, 3>> &) { return s == 0 && Distance(x, dim) > k.far; };
     std::vector<char> marked;
