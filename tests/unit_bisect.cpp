@@ -86,6 +86,22 @@ static bool IsLeaf(DM dm, PetscInt p)
   return idx >= 0;
 }
 
+// Points of each depth over all ranks, each counted on its owner.
+static PetscErrorCode OwnedPoints(DM dm, std::vector<PetscInt> &count)
+{
+  PetscInt depth;
+  PetscFunctionBeginUser;
+  PetscCall(DMPlexGetDepth(dm, &depth));
+  count.assign(depth + 1, 0);
+  for (PetscInt d = 0; d <= depth; ++d) {
+    PetscInt s, e;
+    PetscCall(DMPlexGetDepthStratum(dm, d, &s, &e));
+    for (PetscInt p = s; p < e; ++p) count[d] += !IsLeaf(dm, p);
+  }
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, count.data(), depth + 1, MPIU_INT, MPI_SUM, PetscObjectComm((PetscObject)dm)));
+  PetscFunctionReturn(0);
+}
+
 // Global sums: volume, boundary area, area of the boundary faces of each "Face Sets" value 1..8, and the largest number of cells
 // of a face.
 struct Measures {
@@ -112,13 +128,9 @@ static PetscErrorCode Measure(DM dm, Measures &m)
     PetscCall(DMPlexComputeCellGeometryFVM(dm, c, &vol, NULL, NULL));
     m.volume += vol;
   }
-  PetscInt depth;
-  PetscCall(DMPlexGetDepth(dm, &depth));
-  for (PetscInt d = 0; d <= depth; ++d) {
-    PetscInt s, e;
-    PetscCall(DMPlexGetDepthStratum(dm, d, &s, &e));
-    for (PetscInt p = s; p < e; ++p) m.euler += (d % 2 ? -1 : 1) * !IsLeaf(dm, p);
-  }
+  std::vector<PetscInt> owned;
+  PetscCall(OwnedPoints(dm, owned));
+  for (size_t d = 0; d < owned.size(); ++d) m.euler += (d % 2 ? -1 : 1) * owned[d];
   for (PetscInt f = fS; f < fE; ++f) {
     PetscInt  support, value = -1;
     PetscReal area, x[3];
@@ -134,7 +146,6 @@ static PetscErrorCode Measure(DM dm, Measures &m)
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &m.boundary, 1, MPI_DOUBLE, MPI_SUM, comm));
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, m.faceSets, 9, MPI_DOUBLE, MPI_SUM, comm));
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &m.maxSupport, 1, MPI_INT, MPI_MAX, comm));
-  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &m.euler, 1, MPIU_INT, MPI_SUM, comm));
   PetscFunctionReturn(0);
 }
 
@@ -398,6 +409,10 @@ static PetscErrorCode TestCase(unit::Checker &ck, const Case &k, PetscInt steps)
       PetscCall(AllCells(dm, a));
       PetscCall(AllCells(serial, b));
       ck.Check(a == b, tag + " the same cells as on one rank, numbered otherwise", "%zu cells, %zu on one rank", a.size(), b.size());
+      std::vector<PetscInt> na, nb;
+      PetscCall(OwnedPoints(dm, na));
+      PetscCall(OwnedPoints(serial, nb));
+      ck.Check(na == nb, tag + " the same number of vertices, edges, faces as on one rank (each shared point owned once)", "vertices %d, one rank %d", (int)na[0], (int)nb[0]);
     }
     double worst;
     PetscCall(WorstAspect(dm, &worst));
