@@ -252,25 +252,15 @@ PetscErrorCode SplitTetrahedra(DM coarse, DM fine, const FineNumbering &n, const
   PetscFunctionReturn(0);
 }
 
-// The cell-type label as contiguous strata (stride index sets): the fine mesh is born stratified, so no
-// point goes through DMPlexSetCellType's hash.
+// The cell types of the fine strata (see SetCellTypeStrata).
 PetscErrorCode SetCellTypes(DM fine, const FineNumbering &n)
 {
-  DMLabel label;
+  std::vector<CellTypeStratum> strata = {{n.dim == 2 ? DM_POLYTOPE_TRIANGLE : DM_POLYTOPE_TETRAHEDRON, 0, n.VertexStart()},
+                                         {DM_POLYTOPE_POINT, n.VertexStart(), n.VertexStart() + n.nV + n.nE},
+                                         {DM_POLYTOPE_SEGMENT, n.EdgeStart(), n.End()}};
   PetscFunctionBeginUser;
-  PetscCall(DMCreateLabel(fine, "celltype"));
-  PetscCall(DMGetLabel(fine, "celltype", &label));
-  std::vector<std::pair<DMPolytopeType, std::pair<PetscInt, PetscInt>>> strata = {
-    {n.dim == 2 ? DM_POLYTOPE_TRIANGLE : DM_POLYTOPE_TETRAHEDRON, {0, n.VertexStart()}},
-    {DM_POLYTOPE_POINT, {n.VertexStart(), n.VertexStart() + n.nV + n.nE}},
-    {DM_POLYTOPE_SEGMENT, {n.EdgeStart(), n.End()}}};
-  if (n.dim == 3) strata.push_back({DM_POLYTOPE_TRIANGLE, {n.FaceStart(), n.EdgeStart()}});
-  for (const auto &s : strata) {
-    IS is;
-    PetscCall(ISCreateStride(PETSC_COMM_SELF, s.second.second - s.second.first, s.second.first, 1, &is));
-    PetscCall(DMLabelSetStratumIS(label, s.first, is));
-    PetscCall(ISDestroy(&is));
-  }
+  if (n.dim == 3) strata.push_back({DM_POLYTOPE_TRIANGLE, n.FaceStart(), n.EdgeStart()});
+  PetscCall(SetCellTypeStrata(fine, strata));
   PetscFunctionReturn(0);
 }
 
@@ -315,52 +305,20 @@ PetscErrorCode SetPointSF(DM coarse, DM fine, const FineNumbering &n)
 // carry its value, as in PETSc's refinement.
 PetscErrorCode RefineLabels(DM coarse, DM fine, const FineNumbering &n)
 {
-  PetscInt numLabels;
   PetscFunctionBeginUser;
-  PetscCall(DMGetNumLabels(coarse, &numLabels));
-  for (PetscInt l = 0; l < numLabels; ++l) {
-    const char *name;
-    DMLabel     clabel, flabel;
-    IS          valueIS;
-    PetscBool   isDepth, isType;
-    PetscCall(DMGetLabelName(coarse, l, &name));
-    PetscCall(PetscStrcmp(name, "depth", &isDepth));
-    PetscCall(PetscStrcmp(name, "celltype", &isType));
-    if (isDepth || isType) continue;
-    PetscCall(DMGetLabel(coarse, name, &clabel));
-    PetscCall(DMCreateLabel(fine, name));
-    PetscCall(DMGetLabel(fine, name, &flabel));
-    PetscInt defaultValue;
-    PetscCall(DMLabelGetDefaultValue(clabel, &defaultValue));
-    PetscCall(DMLabelSetDefaultValue(flabel, defaultValue));
-    PetscCall(DMLabelGetValueIS(clabel, &valueIS));
-    PetscInt        nv;
-    const PetscInt *values;
-    PetscCall(ISGetLocalSize(valueIS, &nv));
-    PetscCall(ISGetIndices(valueIS, &values));
-    for (PetscInt i = 0; i < nv; ++i) {
-      IS              pointIS;
-      PetscInt        np;
-      const PetscInt *points;
-      PetscCall(DMLabelGetStratumIS(clabel, values[i], &pointIS));
-      if (!pointIS) continue;
-      PetscCall(ISGetLocalSize(pointIS, &np));
-      PetscCall(ISGetIndices(pointIS, &points));
-      PetscInt *children;
-      PetscInt  count = 0;
-      PetscCall(PetscMalloc1(17 * np, &children));
-      for (PetscInt j = 0; j < np; ++j) count += n.Children(points[j], children + count);
-      std::sort(children, children + count);
-      PetscCall(ISRestoreIndices(pointIS, &points));
-      PetscCall(ISDestroy(&pointIS));
-      IS fineIS;
-      PetscCall(ISCreateGeneral(PETSC_COMM_SELF, count, children, PETSC_OWN_POINTER, &fineIS));
-      PetscCall(DMLabelSetStratumIS(flabel, values[i], fineIS));
-      PetscCall(ISDestroy(&fineIS));
-    }
-    PetscCall(ISRestoreIndices(valueIS, &values));
-    PetscCall(ISDestroy(&valueIS));
-  }
+  PetscCall(ForEachLabelStratum(coarse, fine, [&](DMLabel flabel, PetscInt value, const PetscInt *points, PetscInt np) -> PetscErrorCode {
+    PetscInt *children;
+    PetscInt  count = 0;
+    IS        fineIS;
+    PetscFunctionBeginUser;
+    PetscCall(PetscMalloc1(17 * np, &children));
+    for (PetscInt j = 0; j < np; ++j) count += n.Children(points[j], children + count);
+    std::sort(children, children + count);
+    PetscCall(ISCreateGeneral(PETSC_COMM_SELF, count, children, PETSC_OWN_POINTER, &fineIS));
+    PetscCall(DMLabelSetStratumIS(flabel, value, fineIS));
+    PetscCall(ISDestroy(&fineIS));
+    PetscFunctionReturn(0);
+  }));
   PetscFunctionReturn(0);
 }
 
@@ -392,40 +350,95 @@ PetscErrorCode FineCoordinates(DM coarse, const FineNumbering &n, std::vector<Pe
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode SetCoordinates(DM coarse, DM fine, const FineNumbering &n, const std::vector<PetscReal> &x)
+} // namespace
+
+PetscErrorCode SetCellTypeStrata(DM dm, const std::vector<CellTypeStratum> &strata)
 {
-  PetscSection fsec;
-  Vec          fvec;
-  PetscScalar *fx;
-  PetscInt     cdim;
+  DMLabel label;
   PetscFunctionBeginUser;
-  PetscCall(DMGetCoordinateDim(coarse, &cdim));
-  PetscCall(DMSetCoordinateDim(fine, cdim));
-  PetscCall(PetscSectionCreate(PetscObjectComm((PetscObject)fine), &fsec)); // the global section scans offsets over this comm
-  PetscCall(PetscSectionSetNumFields(fsec, 1));
-  PetscCall(PetscSectionSetFieldComponents(fsec, 0, cdim));
-  const PetscInt vStart = n.VertexStart(), vEnd = vStart + n.nV + n.nE;
-  PetscCall(PetscSectionSetChart(fsec, vStart, vEnd));
-  for (PetscInt v = vStart; v < vEnd; ++v) {
-    PetscCall(PetscSectionSetDof(fsec, v, cdim));
-    PetscCall(PetscSectionSetFieldDof(fsec, v, 0, cdim));
+  PetscCall(DMCreateLabel(dm, "celltype"));
+  PetscCall(DMGetLabel(dm, "celltype", &label));
+  for (const CellTypeStratum &s : strata) {
+    IS is;
+    PetscCall(ISCreateStride(PETSC_COMM_SELF, s.end - s.start, s.start, 1, &is));
+    PetscCall(DMLabelSetStratumIS(label, s.type, is));
+    PetscCall(ISDestroy(&is));
   }
-  PetscCall(PetscSectionSetUp(fsec));
-  PetscCall(DMSetCoordinateSection(fine, cdim, fsec));
-  PetscCall(VecCreateSeq(PETSC_COMM_SELF, (vEnd - vStart) * cdim, &fvec));
-  PetscCall(VecSetBlockSize(fvec, cdim));
-  PetscCall(PetscObjectSetName((PetscObject)fvec, "coordinates"));
-  PetscCall(VecGetArray(fvec, &fx));
-  for (PetscInt v = 0; v < vEnd - vStart; ++v) // the section puts vertex v at (v - vStart) * cdim
-    for (PetscInt d = 0; d < cdim; ++d) fx[v * cdim + d] = x[v * 3 + d];
-  PetscCall(VecRestoreArray(fvec, &fx));
-  PetscCall(DMSetCoordinatesLocal(fine, fvec));
-  PetscCall(VecDestroy(&fvec));
-  PetscCall(PetscSectionDestroy(&fsec));
   PetscFunctionReturn(0);
 }
 
-} // namespace
+PetscErrorCode SetVertexCoordinates(DM dm, PetscInt cdim, PetscInt vStart, PetscInt n, const std::vector<PetscReal> &x)
+{
+  PetscSection sec;
+  Vec          vec;
+  PetscScalar *fx;
+  PetscFunctionBeginUser;
+  PetscCall(DMSetCoordinateDim(dm, cdim));
+  PetscCall(PetscSectionCreate(PetscObjectComm((PetscObject)dm), &sec)); // the global section scans offsets over this comm
+  PetscCall(PetscSectionSetNumFields(sec, 1));
+  PetscCall(PetscSectionSetFieldComponents(sec, 0, cdim));
+  PetscCall(PetscSectionSetChart(sec, vStart, vStart + n));
+  for (PetscInt v = vStart; v < vStart + n; ++v) {
+    PetscCall(PetscSectionSetDof(sec, v, cdim));
+    PetscCall(PetscSectionSetFieldDof(sec, v, 0, cdim));
+  }
+  PetscCall(PetscSectionSetUp(sec));
+  PetscCall(DMSetCoordinateSection(dm, cdim, sec));
+  PetscCall(VecCreateSeq(PETSC_COMM_SELF, n * cdim, &vec));
+  PetscCall(VecSetBlockSize(vec, cdim));
+  PetscCall(PetscObjectSetName((PetscObject)vec, "coordinates"));
+  PetscCall(VecGetArray(vec, &fx));
+  for (PetscInt v = 0; v < n; ++v) // the section puts vertex vStart + v at v * cdim
+    for (PetscInt d = 0; d < cdim; ++d) fx[v * cdim + d] = x[v * 3 + d];
+  PetscCall(VecRestoreArray(vec, &fx));
+  PetscCall(DMSetCoordinatesLocal(dm, vec));
+  PetscCall(VecDestroy(&vec));
+  PetscCall(PetscSectionDestroy(&sec));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ForEachLabelStratum(DM coarse, DM fine, const std::function<PetscErrorCode(DMLabel, PetscInt, const PetscInt *, PetscInt)> &stratum)
+{
+  PetscInt numLabels;
+  PetscFunctionBeginUser;
+  PetscCall(DMGetNumLabels(coarse, &numLabels));
+  for (PetscInt l = 0; l < numLabels; ++l) {
+    const char *name;
+    DMLabel     clabel, flabel;
+    IS          valueIS;
+    PetscBool   isDepth, isType;
+    PetscCall(DMGetLabelName(coarse, l, &name));
+    PetscCall(PetscStrcmp(name, "depth", &isDepth));
+    PetscCall(PetscStrcmp(name, "celltype", &isType));
+    if (isDepth || isType) continue;
+    PetscCall(DMGetLabel(coarse, name, &clabel));
+    PetscCall(DMCreateLabel(fine, name));
+    PetscCall(DMGetLabel(fine, name, &flabel));
+    PetscInt defaultValue;
+    PetscCall(DMLabelGetDefaultValue(clabel, &defaultValue));
+    PetscCall(DMLabelSetDefaultValue(flabel, defaultValue));
+    PetscCall(DMLabelGetValueIS(clabel, &valueIS));
+    PetscInt        nv;
+    const PetscInt *values;
+    PetscCall(ISGetLocalSize(valueIS, &nv));
+    PetscCall(ISGetIndices(valueIS, &values));
+    for (PetscInt i = 0; i < nv; ++i) {
+      IS              pointIS;
+      PetscInt        np;
+      const PetscInt *points;
+      PetscCall(DMLabelGetStratumIS(clabel, values[i], &pointIS));
+      if (!pointIS) continue;
+      PetscCall(ISGetLocalSize(pointIS, &np));
+      PetscCall(ISGetIndices(pointIS, &points));
+      PetscCall(stratum(flabel, values[i], points, np));
+      PetscCall(ISRestoreIndices(pointIS, &points));
+      PetscCall(ISDestroy(&pointIS));
+    }
+    PetscCall(ISRestoreIndices(valueIS, &values));
+    PetscCall(ISDestroy(&valueIS));
+  }
+  PetscFunctionReturn(0);
+}
 
 PetscErrorCode RefineSimplices(DM coarse, DM *fine, std::vector<PetscInt> *parent)
 {
@@ -464,7 +477,9 @@ PetscErrorCode RefineSimplices(DM coarse, DM *fine, std::vector<PetscInt> *paren
   PetscCall(DMPlexStratify(dm));
   PetscCall(SetPointSF(coarse, dm, n));
   PetscCall(RefineLabels(coarse, dm, n));
-  PetscCall(SetCoordinates(coarse, dm, n, x));
+  PetscInt cdim;
+  PetscCall(DMGetCoordinateDim(coarse, &cdim));
+  PetscCall(SetVertexCoordinates(dm, cdim, n.VertexStart(), n.nV + n.nE, x));
   if (parent) {
     parent->resize(n.VertexStart());
     for (PetscInt c = 0; c < n.VertexStart(); ++c) (*parent)[c] = c / n.CellsPer();

@@ -17,11 +17,28 @@
 
 #include <petscdmplex.h>
 
+#include <functional>
+
 namespace signorini {
 
 // Collective. `coarse` must be an interpolated simplex DMPlex of dimension 2 or 3 (any distribution,
 // overlap 0). If `parent` is given, parent[c] is the coarse cell (as c - cStart) of fine cell c (fine
 // cells start at 0).
 PetscErrorCode RefineSimplices(DM coarse, DM *fine, std::vector<PetscInt> *parent);
+
+// Building blocks of the meshes built directly (here and in bisect.cpp).
+// The cell-type label as contiguous strata, one stride index set each: a mesh born stratified needs no
+// point to go through DMPlexSetCellType's hash.
+struct CellTypeStratum {
+  DMPolytopeType type;
+  PetscInt       start, end;
+};
+PetscErrorCode SetCellTypeStrata(DM dm, const std::vector<CellTypeStratum> &strata);
+// Local coordinates of the vertices vStart .. vStart + n - 1, from x with 3 numbers per vertex (the first
+// cdim are used).
+PetscErrorCode SetVertexCoordinates(DM dm, PetscInt cdim, PetscInt vStart, PetscInt n, const std::vector<PetscReal> &x);
+// Creates in `fine` every label of `coarse` but depth and cell type, with its default value, and calls
+// `stratum(fine label, value, points, number of points)` for each value with the coarse points carrying it.
+PetscErrorCode ForEachLabelStratum(DM coarse, DM fine, const std::function<PetscErrorCode(DMLabel, PetscInt, const PetscInt *, PetscInt)> &stratum);
 
 } // namespace signorini

@@ -1,0 +1,687 @@
+// Refinement of marked cells by bisection of marked edges, for triangles and tetrahedra alike (see
+// localrefine.h).
+//
+// Why it is conforming and the same on any number of ranks:
+//  - Every rank orders edges the same way, by geometry only: longer first, ties broken by the midpoint's
+//    coordinates, then by the endpoints' (exact doubles, so the same on every rank).
+//  - A marked cell marks its longest edge; then every cell with a marked edge marks its longest edge, to
+//    a fixed point (Rivara's closure). The fixed point is the least one containing the first marks, so
+//    it does not depend on the order of the sweeps or on the distribution.
+//  - Each cell bisects its marked edges one after the other in the global order, each bisection cutting
+//    every current child that has the whole edge (an edge not yet bisected is whole in some child).
+//    Restricted to a face, this is the face's own sequence of bisections of its marked edges in the same
+//    order (a cut by an edge off the face leaves the face's pieces whole), so the two cells of a face cut
+//    it alike. The closure makes every cell's first cut its longest edge, for the shape of the children.
+// New vertices are the midpoints of the marked edges.
+//
+// The fine DMPlex is built directly, as refine.cpp builds the uniform one (PETSc's DMPlexInterpolate of
+// the children's cell list costs 3 s for 300 k tetrahedra, ten times the rest): every child stays on its
+// parent's rank; its edges and faces are found by sorting their vertex sets; each fine point knows the
+// coarse point it lies in (its carrier: a vertex, edge, face, or the cell itself). The fine points in a
+// shared coarse point are shared with the same ranks, and both sides list them in the same order (by
+// global vertex numbers), which gives the point star forest; the vertex order stored in every edge and
+// face is by global vertex numbers too, so shared points have the same cones on every rank.
+#include "signorini/localrefine.h"
+#include "signorini/mesh.h"
+#include "signorini/refine.h"
+
+#include <algorithm>
+#include <array>
+#include <numeric>
+#include <tuple>
+
+namespace signorini {
+
+namespace {
+
+// The coarse mesh of one rank as tables.
+struct Coarse {
+  PetscInt               dim = 0, cdim = 0, nce = 0; // nce: edges per cell
+  PetscInt               pS = 0, pE = 0, cS = 0, cE = 0, fS = 0, fE = 0, eS = 0, eE = 0, vS = 0, vE = 0;
+  std::vector<PetscReal> x;         // 3 per vertex (zero-padded)
+  std::vector<PetscInt>  edgeVerts; // 2 per edge, as v - vS
+  std::vector<PetscInt>  cellVerts; // dim + 1 per cell, as v - vS
+  std::vector<PetscInt>  cellEdges; // nce per cell, as e - eS
+  std::vector<PetscInt>  cellFaces; // 3D: 4 per cell (cone), coarse points
+  std::vector<PetscInt>  faceEdges; // 3D: 3 per face, as e - eS
+  PetscInt               NumCells() const { return cE - cS; }
+  PetscInt               NumVertices() const { return vE - vS; }
+  PetscInt               NumEdges() const { return eE - eS; }
+};
+
+PetscErrorCode ReadCoarse(DM dm, Coarse &m)
+{
+  PetscSection       csec;
+  Vec                cvec;
+  const PetscScalar *cx;
+  PetscFunctionBeginUser;
+  PetscCall(DMGetDimension(dm, &m.dim));
+  PetscCheck(m.dim == 2 || m.dim == 3, PetscObjectComm((PetscObject)dm), PETSC_ERR_SUP, "RefineMarkedBisection: mesh dimension %" PetscInt_FMT, m.dim);
+  PetscCall(DMGetCoordinateDim(dm, &m.cdim));
+  m.nce = m.dim == 2 ? 3 : 6;
+  PetscCall(DMPlexGetChart(dm, &m.pS, &m.pE));
+  PetscCall(DMPlexGetHeightStratum(dm, 0, &m.cS, &m.cE));
+  PetscCall(DMPlexGetHeightStratum(dm, 1, &m.fS, &m.fE));
+  PetscCall(DMPlexGetDepthStratum(dm, 1, &m.eS, &m.eE));
+  PetscCall(DMPlexGetDepthStratum(dm, 0, &m.vS, &m.vE));
+  PetscCall(DMGetCoordinateSection(dm, &csec));
+  PetscCall(DMGetCoordinatesLocal(dm, &cvec));
+  PetscCall(VecGetArrayRead(cvec, &cx));
+  m.x.assign(3 * m.NumVertices(), 0.0);
+  for (PetscInt v = m.vS; v < m.vE; ++v) {
+    PetscInt off;
+    PetscCall(PetscSectionGetOffset(csec, v, &off));
+    for (PetscInt d = 0; d < m.cdim; ++d) m.x[3 * (v - m.vS) + d] = PetscRealPart(cx[off + d]);
+  }
+  PetscCall(VecRestoreArrayRead(cvec, &cx));
+  m.edgeVerts.resize(2 * m.NumEdges());
+  for (PetscInt e = m.eS; e < m.eE; ++e) {
+    const PetscInt *cone;
+    PetscCall(DMPlexGetCone(dm, e, &cone));
+    for (PetscInt k = 0; k < 2; ++k) m.edgeVerts[2 * (e - m.eS) + k] = cone[k] - m.vS;
+  }
+  m.cellVerts.resize((m.dim + 1) * m.NumCells());
+  m.cellEdges.resize(m.nce * m.NumCells());
+  for (PetscInt c = m.cS; c < m.cE; ++c) {
+    PetscInt        verts[4], n = 0;
+    const PetscInt *cone;
+    PetscCall(SimplexVertices(dm, c, m.dim, verts));
+    for (PetscInt k = 0; k <= m.dim; ++k) m.cellVerts[(m.dim + 1) * (c - m.cS) + k] = verts[k] - m.vS;
+    // The edges: the cone of a triangle, the edges of the faces of a tetrahedron without repeats.
+    PetscInt *edges = &m.cellEdges[m.nce * (c - m.cS)];
+    PetscCall(DMPlexGetCone(dm, c, &cone));
+    if (m.dim == 2)
+      for (PetscInt k = 0; k < 3; ++k) edges[n++] = cone[k] - m.eS;
+    else
+      for (PetscInt f = 0; f < 4; ++f) {
+        const PetscInt *fcone;
+        PetscCall(DMPlexGetCone(dm, cone[f], &fcone));
+        for (PetscInt k = 0; k < 3; ++k)
+          if (std::find(edges, edges + n, fcone[k] - m.eS) == edges + n) edges[n++] = fcone[k] - m.eS;
+      }
+    PetscCheck(n == m.nce, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: cell %" PetscInt_FMT " has %" PetscInt_FMT " edges", c, n);
+    if (m.dim == 3) m.cellFaces.insert(m.cellFaces.end(), cone, cone + 4);
+  }
+  if (m.dim == 3)
+    for (PetscInt f = m.fS; f < m.fE; ++f) {
+      const PetscInt *cone;
+      PetscCall(DMPlexGetCone(dm, f, &cone));
+      for (PetscInt k = 0; k < 3; ++k) m.faceEdges.push_back(cone[k] - m.eS);
+    }
+  PetscFunctionReturn(0);
+}
+
+// rank[e] = position of local edge e in the global order (0: first, the longest). Local positions suffice:
+// only edges of one cell are ever compared.
+std::vector<PetscInt> EdgeOrder(const Coarse &m)
+{
+  struct Key {
+    PetscReal             len2;
+    std::array<PetscReal, 3> mid, lo, hi;
+  };
+  std::vector<Key> key(m.NumEdges());
+  for (PetscInt e = 0; e < m.NumEdges(); ++e) {
+    const PetscReal *a = &m.x[3 * m.edgeVerts[2 * e]], *b = &m.x[3 * m.edgeVerts[2 * e + 1]];
+    std::array<PetscReal, 3> A = {a[0], a[1], a[2]}, B = {b[0], b[1], b[2]};
+    Key &k = key[e];
+    k.len2 = 0;
+    for (int d = 0; d < 3; ++d) {
+      k.len2 += (B[d] - A[d]) * (B[d] - A[d]); // (b - a)^2 == (a - b)^2 exactly: independent of the cone order
+      k.mid[d] = A[d] + B[d];
+    }
+    k.lo = std::min(A, B), k.hi = std::max(A, B);
+  }
+  std::vector<PetscInt> byOrder(m.NumEdges()), rank(m.NumEdges());
+  std::iota(byOrder.begin(), byOrder.end(), 0);
+  std::sort(byOrder.begin(), byOrder.end(), [&](PetscInt i, PetscInt j) {
+    const Key &a = key[i], &b = key[j];
+    if (a.len2 != b.len2) return a.len2 > b.len2;
+    return std::tie(a.mid, a.lo, a.hi) < std::tie(b.mid, b.lo, b.hi);
+  });
+  for (PetscInt i = 0; i < m.NumEdges(); ++i) rank[byOrder[i]] = i;
+  return rank;
+}
+
+// How the coarse points are shared with other ranks (the charts of a DMPlex start at 0).
+struct Sharing {
+  PetscSF            sf = nullptr;     // the point star forest; null: nothing is shared
+  std::vector<PetscInt> leaf;          // over the chart: index in the graph's leaves, or -1
+  std::vector<char>  shared;           // over the chart: a leaf, or a root with leaves
+  const PetscSFNode *remote = nullptr; // the graph's roots of the leaves
+};
+
+PetscErrorCode GetSharing(DM dm, const Coarse &m, Sharing &sh)
+{
+  PetscInt        nroots, nleaves;
+  const PetscInt *ilocal, *degree;
+  PetscFunctionBeginUser;
+  PetscCheck(m.pS == 0, PETSC_COMM_SELF, PETSC_ERR_SUP, "RefineMarkedBisection: chart starts at %" PetscInt_FMT, m.pS);
+  sh.leaf.assign(m.pE, -1);
+  sh.shared.assign(m.pE, 0);
+  PetscCall(DMGetPointSF(dm, &sh.sf));
+  PetscCall(PetscSFGetGraph(sh.sf, &nroots, &nleaves, &ilocal, &sh.remote));
+  if (nroots < 0) {
+    sh.sf = nullptr;
+    PetscFunctionReturn(0);
+  }
+  for (PetscInt l = 0; l < nleaves; ++l) {
+    const PetscInt p = ilocal ? ilocal[l] : l;
+    sh.leaf[p] = l, sh.shared[p] = 1;
+  }
+  PetscCall(PetscSFComputeDegreeBegin(sh.sf, &degree));
+  PetscCall(PetscSFComputeDegreeEnd(sh.sf, &degree));
+  for (PetscInt p = 0; p < nroots; ++p)
+    if (degree[p]) sh.shared[p] = 1;
+  PetscFunctionReturn(0);
+}
+
+// The owner's verdict on every shared edge: the marks are or-ed into the owner and sent back. Returns the
+// edges whose mark this rank learnt from others.
+PetscErrorCode SyncMarks(const Coarse &m, const Sharing &sh, std::vector<char> &mark, std::vector<PetscInt> &learnt)
+{
+  PetscFunctionBeginUser;
+  learnt.clear();
+  if (!sh.sf) PetscFunctionReturn(0);
+  std::vector<int> leaf(m.pE, 0), root, back;
+  for (PetscInt e = 0; e < m.NumEdges(); ++e) leaf[m.eS + e] = mark[e];
+  root = leaf;
+  PetscCall(PetscSFReduceBegin(sh.sf, MPI_INT, leaf.data(), root.data(), MPI_MAX));
+  PetscCall(PetscSFReduceEnd(sh.sf, MPI_INT, leaf.data(), root.data(), MPI_MAX));
+  back = root;
+  PetscCall(PetscSFBcastBegin(sh.sf, MPI_INT, root.data(), back.data(), MPI_REPLACE));
+  PetscCall(PetscSFBcastEnd(sh.sf, MPI_INT, root.data(), back.data(), MPI_REPLACE));
+  for (PetscInt e = 0; e < m.NumEdges(); ++e)
+    if (back[m.eS + e] && !mark[e]) {
+      mark[e] = 1;
+      learnt.push_back(e);
+    }
+  PetscFunctionReturn(0);
+}
+
+// Rivara's closure of the marks (see the top of the file), with shared edges agreed between ranks.
+PetscErrorCode CloseMarks(MPI_Comm comm, const Coarse &m, const Sharing &sh, const std::vector<PetscInt> &rank, const std::vector<char> &marked, std::vector<char> &mark)
+{
+  const PetscInt nc = m.NumCells(), ne = m.NumEdges();
+  std::vector<PetscInt> longest(nc), starStart(ne + 1, 0), star(m.nce * nc), work;
+  PetscFunctionBeginUser;
+  for (PetscInt c = 0; c < nc; ++c) {
+    const PetscInt *edges = &m.cellEdges[m.nce * c];
+    longest[c]            = *std::min_element(edges, edges + m.nce, [&](PetscInt a, PetscInt b) { return rank[a] < rank[b]; });
+    for (PetscInt k = 0; k < m.nce; ++k) ++starStart[edges[k] + 1];
+  }
+  std::partial_sum(starStart.begin(), starStart.end(), starStart.begin());
+  {
+    std::vector<PetscInt> fill(starStart.begin(), starStart.end() - 1);
+    for (PetscInt c = 0; c < nc; ++c)
+      for (PetscInt k = 0; k < m.nce; ++k) star[fill[m.cellEdges[m.nce * c + k]]++] = c;
+  }
+  mark.assign(ne, 0);
+  const auto markEdge = [&](PetscInt e) {
+    if (!mark[e]) mark[e] = 1, work.push_back(e);
+  };
+  for (PetscInt c = 0; c < nc; ++c)
+    if (marked[c]) markEdge(longest[c]);
+  for (;;) {
+    while (!work.empty()) {
+      const PetscInt e = work.back();
+      work.pop_back();
+      for (PetscInt i = starStart[e]; i < starStart[e + 1]; ++i) markEdge(longest[star[i]]);
+    }
+    std::vector<PetscInt> learnt;
+    PetscCall(SyncMarks(m, sh, mark, learnt));
+    work = learnt;
+    int any = !work.empty();
+    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &any, 1, MPI_INT, MPI_LOR, comm));
+    if (!any) break;
+  }
+  PetscFunctionReturn(0);
+}
+
+// The children of the coarse cells of one rank, by the local ids of their vertices: coarse vertex v is
+// v - vS, the midpoint of edge e is nV + e - eS.
+struct Children {
+  PetscInt              nv = 0;  // vertices per child
+  std::vector<PetscInt> verts;   // nv per child, local ids
+  std::vector<PetscInt> start;   // children of coarse cell c: start[c] .. start[c + 1]
+  std::vector<PetscReal> x;      // 3 per local id (midpoints of unmarked edges unused)
+};
+
+PetscReal Det(const Coarse &m, const std::vector<PetscReal> &x, const PetscInt *v)
+{
+  PetscReal J[3][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
+  for (PetscInt k = 0; k < m.dim; ++k)
+    for (PetscInt d = 0; d < m.dim; ++d) J[k][d] = x[3 * v[k + 1] + d] - x[3 * v[0] + d];
+  if (m.dim == 2) return J[0][0] * J[1][1] - J[0][1] * J[1][0];
+  return J[0][0] * (J[1][1] * J[2][2] - J[1][2] * J[2][1]) - J[0][1] * (J[1][0] * J[2][2] - J[1][2] * J[2][0]) + J[0][2] * (J[1][0] * J[2][1] - J[1][1] * J[2][0]);
+}
+
+// Cuts every cell by its marked edges in the global order, and turns each child to PETSc's orientation
+// (triangles counter-clockwise, tetrahedra with det[v1 - v0, v2 - v0, v3 - v0] < 0): with the cones of
+// SetCones, cells of positive Jacobian.
+void Cut(const Coarse &m, const std::vector<PetscInt> &rank, const std::vector<char> &mark, Children &ch)
+{
+  const PetscInt nV = m.NumVertices(), nb = m.dim + 1;
+  ch.nv = nb;
+  ch.x.assign(3 * (nV + m.NumEdges()), 0.0);
+  std::copy(m.x.begin(), m.x.end(), ch.x.begin());
+  for (PetscInt e = 0; e < m.NumEdges(); ++e)
+    for (int d = 0; d < 3; ++d) ch.x[3 * (nV + e) + d] = 0.5 * (m.x[3 * m.edgeVerts[2 * e] + d] + m.x[3 * m.edgeVerts[2 * e + 1] + d]);
+  ch.start.assign(1, 0);
+  ch.verts.clear();
+  std::vector<std::array<PetscInt, 4>> cur, next;
+  std::vector<PetscInt>                cuts;
+  const PetscReal                      sign = m.dim == 2 ? 1 : -1;
+  for (PetscInt c = 0; c < m.NumCells(); ++c) {
+    cur.assign(1, {0, 0, 0, 0});
+    std::copy(&m.cellVerts[nb * c], &m.cellVerts[nb * c] + nb, cur[0].begin());
+    cuts.clear();
+    for (PetscInt k = 0; k < m.nce; ++k)
+      if (mark[m.cellEdges[m.nce * c + k]]) cuts.push_back(m.cellEdges[m.nce * c + k]);
+    std::sort(cuts.begin(), cuts.end(), [&](PetscInt a, PetscInt b) { return rank[a] < rank[b]; });
+    for (PetscInt e : cuts) {
+      const PetscInt a = m.edgeVerts[2 * e], b = m.edgeVerts[2 * e + 1], mid = nV + e;
+      next.clear();
+      for (const auto &t : cur) {
+        const auto ia = std::find(t.begin(), t.begin() + nb, a) - t.begin(), ib = std::find(t.begin(), t.begin() + nb, b) - t.begin();
+        if (ia == nb || ib == nb) {
+          next.push_back(t);
+          continue;
+        }
+        next.push_back(t), next.back()[ia] = mid;
+        next.push_back(t), next.back()[ib] = mid;
+      }
+      cur.swap(next);
+    }
+    for (auto &t : cur) {
+      if (Det(m, ch.x, t.data()) * sign < 0) std::swap(t[0], t[1]);
+      ch.verts.insert(ch.verts.end(), t.begin(), t.begin() + nb);
+    }
+    ch.start.push_back((PetscInt)(ch.verts.size() / nb));
+  }
+}
+
+// The coarse point of a fine vertex (local id): the vertex itself, or the edge of a midpoint.
+PetscInt VertexCarrier(const Coarse &m, PetscInt id) { return id < m.NumVertices() ? m.vS + id : m.eS + id - m.NumVertices(); }
+
+// Global numbers of the fine vertices by local id (-1: midpoint of an unmarked edge): owned vertices and
+// midpoints of owned edges are numbered contiguously per rank, the others get their owner's number.
+PetscErrorCode NumberVertices(DM dm, const Coarse &m, const Sharing &sh, const std::vector<char> &mark, std::vector<PetscInt> &gnum)
+{
+  MPI_Comm       comm = PetscObjectComm((PetscObject)dm);
+  const PetscInt nV   = m.NumVertices(), nId = nV + m.NumEdges();
+  PetscFunctionBeginUser;
+  const auto used = [&](PetscInt id) { return id < nV || mark[id - nV]; };
+  PetscInt   n = 0, offset = 0;
+  for (PetscInt id = 0; id < nId; ++id) n += used(id) && sh.leaf[VertexCarrier(m, id)] < 0;
+  PetscCallMPI(MPI_Exscan(&n, &offset, 1, MPIU_INT, MPI_SUM, comm));
+  PetscMPIInt r;
+  PetscCallMPI(MPI_Comm_rank(comm, &r));
+  if (r == 0) offset = 0;
+  std::vector<PetscInt> root(m.pE, -1);
+  for (PetscInt id = 0; id < nId; ++id)
+    if (used(id) && sh.leaf[VertexCarrier(m, id)] < 0) root[VertexCarrier(m, id)] = offset++;
+  std::vector<PetscInt> all = root;
+  if (sh.sf) {
+    PetscCall(PetscSFBcastBegin(sh.sf, MPIU_INT, root.data(), all.data(), MPI_REPLACE));
+    PetscCall(PetscSFBcastEnd(sh.sf, MPIU_INT, root.data(), all.data(), MPI_REPLACE));
+  }
+  gnum.assign(nId, -1);
+  for (PetscInt id = 0; id < nId; ++id)
+    if (used(id)) gnum[id] = all[VertexCarrier(m, id)];
+  PetscFunctionReturn(0);
+}
+
+// The vertex pairs of a simplex (a triangle's edges are the first three, in PETSc's cone order: edge k
+// runs from vertex k to k + 1) and the faces of PETSc's reference tetrahedron.
+const PetscInt kPair[6][2]    = {{0, 1}, {1, 2}, {2, 0}, {0, 3}, {1, 3}, {2, 3}};
+const PetscInt kRefFace[4][3] = {{0, 1, 2}, {0, 3, 1}, {0, 2, 3}, {2, 1, 3}};
+
+PetscInt PairIndex(PetscInt i, PetscInt j)
+{
+  for (PetscInt k = 0; k < 6; ++k)
+    if ((kPair[k][0] == i && kPair[k][1] == j) || (kPair[k][0] == j && kPair[k][1] == i)) return k;
+  return -1;
+}
+
+// The fine mesh of one rank. Points: the children (cells) in order, the vertices (numbered by increasing
+// global number), then in 3D the triangles, then the edges. Edges and triangles store their vertices by
+// increasing number.
+struct Fine {
+  PetscInt              dim = 0, nc = 0, nv = 0, nt = 0, ne = 0;
+  std::vector<PetscInt> vertexOf, vertexId;     // local id -> fine vertex (-1: none), and back
+  std::vector<PetscInt> edgeVerts, triVerts;     // 2, 3 fine vertices per point
+  std::vector<PetscInt> edgeCarrier, triCarrier; // the coarse point it lies in (-1: inside a cell)
+  std::vector<PetscInt> childEdge, childTri;     // per child: the edge of pair k, the triangle of face k (3D)
+  std::vector<PetscInt> parentOf;                // per child: the coarse cell (as c - cStart)
+  PetscInt              Vertex(PetscInt i) const { return nc + i; }
+  PetscInt              Tri(PetscInt j) const { return nc + nv + j; }
+  PetscInt              Edge(PetscInt j) const { return nc + nv + nt + j; }
+  PetscInt              End() const { return nc + nv + nt + ne; }
+};
+
+// The coarse point that the fine point with local vertex ids `ids` (inside coarse cell c) lies in: the
+// cell's lowest-dimensional edge or face whose fine vertices (its vertices and the midpoints of its marked
+// edges) include all of them, or -1 (the cell's interior).
+PetscInt Carrier(const Coarse &m, const std::vector<char> &mark, PetscInt c, const PetscInt *ids, PetscInt n)
+{
+  const PetscInt nV = m.NumVertices();
+  PetscInt       on[9], k;
+  const auto     inside = [&](PetscInt count) {
+    for (PetscInt i = 0; i < n; ++i)
+      if (std::find(on, on + count, ids[i]) == on + count) return false;
+    return true;
+  };
+  for (PetscInt j = 0; j < m.nce; ++j) {
+    const PetscInt e = m.cellEdges[m.nce * c + j];
+    k = 0, on[k++] = m.edgeVerts[2 * e], on[k++] = m.edgeVerts[2 * e + 1];
+    if (mark[e]) on[k++] = nV + e;
+    if (inside(k)) return m.eS + e;
+  }
+  for (PetscInt j = 0; m.dim == 3 && j < 4; ++j) {
+    const PetscInt F = m.cellFaces[4 * c + j];
+    k                = 0;
+    for (PetscInt i = 0; i < 3; ++i) {
+      const PetscInt e = m.faceEdges[3 * (F - m.fS) + i];
+      on[k++]          = m.edgeVerts[2 * e], on[k++] = m.edgeVerts[2 * e + 1];
+      if (mark[e]) on[k++] = nV + e;
+    }
+    if (inside(k)) return F;
+  }
+  return -1;
+}
+
+// Numbers the distinct keys (sorted vertex sets, one per occurrence) in increasing order: idOf[occurrence]
+// = number, `verts` gets each key once, `first` an occurrence of each. A counting sort by the first vertex,
+// then small sorts within each vertex's bucket: several times faster than one sort of all occurrences.
+template <size_t N>
+void Distinct(const std::vector<std::array<PetscInt, N>> &key, PetscInt numVertices, std::vector<PetscInt> &idOf, std::vector<PetscInt> &verts, std::vector<PetscInt> &first)
+{
+  const PetscInt        n = (PetscInt)key.size();
+  std::vector<PetscInt> start(numVertices + 1, 0), order(n);
+  for (const auto &k : key) ++start[k[0] + 1];
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  {
+    std::vector<PetscInt> fill(start.begin(), start.end() - 1);
+    for (PetscInt o = 0; o < n; ++o) order[fill[key[o][0]]++] = o;
+  }
+  idOf.assign(n, -1);
+  verts.clear(), first.clear();
+  PetscInt id = -1;
+  for (PetscInt v = 0; v < numVertices; ++v) {
+    std::sort(order.begin() + start[v], order.begin() + start[v + 1], [&](PetscInt a, PetscInt b) { return key[a] < key[b]; });
+    for (PetscInt i = start[v]; i < start[v + 1]; ++i) {
+      const PetscInt o = order[i];
+      if (i == start[v] || key[o] != key[order[i - 1]]) {
+        ++id;
+        verts.insert(verts.end(), key[o].begin(), key[o].end());
+        first.push_back(o);
+      }
+      idOf[o] = id;
+    }
+  }
+}
+
+// The fine points of one rank: vertices, then the distinct edges and triangles of the children, each with
+// its carrier.
+void FinePoints(const Coarse &m, const std::vector<char> &mark, const Children &ch, const std::vector<PetscInt> &gnum, Fine &f)
+{
+  const PetscInt nb = ch.nv, nce = m.nce;
+  f.dim = m.dim, f.nc = (PetscInt)ch.verts.size() / nb;
+  std::vector<std::pair<PetscInt, PetscInt>> byNumber;
+  for (PetscInt id = 0; id < (PetscInt)gnum.size(); ++id)
+    if (gnum[id] >= 0) byNumber.push_back({gnum[id], id});
+  std::sort(byNumber.begin(), byNumber.end());
+  f.nv = (PetscInt)byNumber.size();
+  f.vertexOf.assign(gnum.size(), -1);
+  f.vertexId.resize(f.nv);
+  for (PetscInt i = 0; i < f.nv; ++i) f.vertexOf[byNumber[i].second] = i, f.vertexId[i] = byNumber[i].second;
+  f.parentOf.resize(f.nc);
+  for (PetscInt c = 0; c < m.NumCells(); ++c)
+    for (PetscInt k = ch.start[c]; k < ch.start[c + 1]; ++k) f.parentOf[k] = c;
+  const auto fineVertex = [&](PetscInt t, PetscInt i) { return f.vertexOf[ch.verts[nb * t + i]]; };
+  std::vector<PetscInt> first, ids(3);
+  {
+    std::vector<std::array<PetscInt, 2>> key(nce * f.nc);
+    for (PetscInt t = 0; t < f.nc; ++t)
+      for (PetscInt k = 0; k < nce; ++k) {
+        const PetscInt a = fineVertex(t, kPair[k][0]), b = fineVertex(t, kPair[k][1]);
+        key[nce * t + k] = {std::min(a, b), std::max(a, b)};
+      }
+    Distinct<2>(key, f.nv, f.childEdge, f.edgeVerts, first);
+  }
+  f.ne = (PetscInt)first.size();
+  f.edgeCarrier.resize(f.ne);
+  for (PetscInt j = 0; j < f.ne; ++j) {
+    for (PetscInt i = 0; i < 2; ++i) ids[i] = f.vertexId[f.edgeVerts[2 * j + i]];
+    f.edgeCarrier[j] = Carrier(m, mark, f.parentOf[first[j] / nce], ids.data(), 2);
+  }
+  if (m.dim == 2) return;
+  {
+    std::vector<std::array<PetscInt, 3>> key(4 * f.nc);
+    for (PetscInt t = 0; t < f.nc; ++t)
+      for (PetscInt k = 0; k < 4; ++k) {
+        key[4 * t + k] = {fineVertex(t, kRefFace[k][0]), fineVertex(t, kRefFace[k][1]), fineVertex(t, kRefFace[k][2])};
+        std::sort(key[4 * t + k].begin(), key[4 * t + k].end());
+      }
+    Distinct<3>(key, f.nv, f.childTri, f.triVerts, first);
+  }
+  f.nt = (PetscInt)first.size();
+  f.triCarrier.resize(f.nt);
+  for (PetscInt j = 0; j < f.nt; ++j) {
+    for (PetscInt i = 0; i < 3; ++i) ids[i] = f.vertexId[f.triVerts[3 * j + i]];
+    f.triCarrier[j] = Carrier(m, mark, f.parentOf[first[j] / 4], ids.data(), 3);
+  }
+}
+
+// Cones and orientations: an edge from its lower to its higher vertex; a triangle (a, b, c), a < b < c,
+// with edges (a, b), (b, c), (c, a), the last reversed; a child's faces in PETSc's reference order.
+PetscErrorCode SetCones(DM dm, const Children &ch, const Fine &f)
+{
+  const PetscInt nb = ch.nv;
+  PetscFunctionBeginUser;
+  PetscCall(DMPlexSetChart(dm, 0, f.End()));
+  for (PetscInt t = 0; t < f.nc; ++t) PetscCall(DMPlexSetConeSize(dm, t, nb));
+  for (PetscInt j = 0; j < f.nt; ++j) PetscCall(DMPlexSetConeSize(dm, f.Tri(j), 3));
+  for (PetscInt j = 0; j < f.ne; ++j) PetscCall(DMPlexSetConeSize(dm, f.Edge(j), 2));
+  PetscCall(DMSetUp(dm));
+  for (PetscInt j = 0; j < f.ne; ++j) {
+    const PetscInt cone[2] = {f.Vertex(f.edgeVerts[2 * j]), f.Vertex(f.edgeVerts[2 * j + 1])};
+    PetscCall(DMPlexSetCone(dm, f.Edge(j), cone));
+  }
+  std::vector<char> done(f.nt, 0);
+  for (PetscInt t = 0; t < f.nc; ++t) {
+    PetscInt v[4], cone[4], ornt[4];
+    for (PetscInt i = 0; i < nb; ++i) v[i] = f.vertexOf[ch.verts[nb * t + i]];
+    if (f.dim == 2) {
+      for (PetscInt k = 0; k < 3; ++k) {
+        cone[k] = f.Edge(f.childEdge[3 * t + k]);
+        ornt[k] = v[kPair[k][0]] < v[kPair[k][1]] ? 0 : -1;
+      }
+    } else {
+      for (PetscInt k = 0; k < 4; ++k) {
+        const PetscInt  tri = f.childTri[4 * t + k], want[3] = {v[kRefFace[k][0]], v[kRefFace[k][1]], v[kRefFace[k][2]]};
+        const PetscInt *has = &f.triVerts[3 * tri];
+        cone[k]             = f.Tri(tri);
+        PetscCall(DMPolytopeGetVertexOrientation(DM_POLYTOPE_TRIANGLE, has, want, &ornt[k]));
+        if (done[tri]) continue;
+        done[tri]             = 1;
+        PetscInt       tcone[3];
+        const PetscInt tornt[3] = {0, 0, -1};
+        for (PetscInt e = 0; e < 3; ++e) {
+          const PetscInt a = has[e], b = has[(e + 1) % 3];
+          const PetscInt ia = std::find(v, v + 4, a) - v, ib = std::find(v, v + 4, b) - v;
+          tcone[e] = f.Edge(f.childEdge[6 * t + PairIndex(ia, ib)]);
+        }
+        PetscCall(DMPlexSetCone(dm, f.Tri(tri), tcone));
+        PetscCall(DMPlexSetConeOrientation(dm, f.Tri(tri), tornt));
+      }
+    }
+    PetscCall(DMPlexSetCone(dm, t, cone));
+    PetscCall(DMPlexSetConeOrientation(dm, t, ornt));
+  }
+  PetscFunctionReturn(0);
+}
+
+// The point star forest: the fine points lying in a shared coarse point are shared with the same ranks,
+// with the root on the coarse point's root rank. Both sides list them in the same order (by depth, then by
+// the global numbers of their vertices), so the owner's list, sent through the coarse forest, pairs them.
+PetscErrorCode SetPointSF(DM coarse, DM dm, const Coarse &m, const Sharing &sh, const std::vector<PetscInt> &gnum, const Fine &f)
+{
+  MPI_Comm comm = PetscObjectComm((PetscObject)coarse);
+  PetscSF  fsf;
+  PetscFunctionBeginUser;
+  if (!sh.sf) PetscFunctionReturn(0);
+  // (carrier, depth, global vertex numbers, fine point) of every fine point in a shared coarse point
+  using Entry = std::tuple<PetscInt, PetscInt, std::array<PetscInt, 3>, PetscInt>;
+  std::vector<Entry> entries;
+  const auto         global = [&](PetscInt i) { return gnum[f.vertexId[i]]; };
+  for (PetscInt i = 0; i < f.nv; ++i) {
+    const PetscInt q = VertexCarrier(m, f.vertexId[i]);
+    if (sh.shared[q]) entries.push_back({q, 0, {global(i), -1, -1}, f.Vertex(i)});
+  }
+  for (PetscInt j = 0; j < f.ne; ++j) {
+    const PetscInt q = f.edgeCarrier[j];
+    if (q >= 0 && sh.shared[q]) entries.push_back({q, 1, {global(f.edgeVerts[2 * j]), global(f.edgeVerts[2 * j + 1]), -1}, f.Edge(j)});
+  }
+  for (PetscInt j = 0; j < f.nt; ++j) {
+    const PetscInt q = f.triCarrier[j];
+    if (q >= 0 && sh.shared[q]) entries.push_back({q, 2, {global(f.triVerts[3 * j]), global(f.triVerts[3 * j + 1]), global(f.triVerts[3 * j + 2])}, f.Tri(j)});
+  }
+  std::sort(entries.begin(), entries.end());
+  // Groups by carrier; the owner's groups get compact numbers, which the leaves learn.
+  constexpr PetscInt    kBlock = 8; // a count and at most 7 points (a face: 4 triangles and 3 edges)
+  std::vector<PetscInt> groupStart, compact(m.pE, -1), remoteCompact;
+  for (size_t i = 0; i < entries.size(); ++i)
+    if (i == 0 || std::get<0>(entries[i]) != std::get<0>(entries[i - 1])) groupStart.push_back((PetscInt)i);
+  groupStart.push_back((PetscInt)entries.size());
+  std::vector<PetscInt> blocks;
+  PetscInt              numRoots = 0, numLeaves = 0;
+  for (size_t g = 0; g + 1 < groupStart.size(); ++g) {
+    const PetscInt q = std::get<0>(entries[groupStart[g]]), n = groupStart[g + 1] - groupStart[g];
+    PetscCheck(n < kBlock, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: %" PetscInt_FMT " fine points in coarse point %" PetscInt_FMT, n, q);
+    if (sh.leaf[q] >= 0) {
+      ++numLeaves;
+      continue;
+    }
+    compact[q] = numRoots++;
+    blocks.push_back(n);
+    for (PetscInt i = 0; i < kBlock - 1; ++i) blocks.push_back(i < n ? std::get<3>(entries[groupStart[g] + i]) : -1);
+  }
+  remoteCompact = compact;
+  PetscCall(PetscSFBcastBegin(sh.sf, MPIU_INT, compact.data(), remoteCompact.data(), MPI_REPLACE));
+  PetscCall(PetscSFBcastEnd(sh.sf, MPIU_INT, compact.data(), remoteCompact.data(), MPI_REPLACE));
+  std::vector<PetscSFNode> groupRoots;
+  for (size_t g = 0; g + 1 < groupStart.size(); ++g) {
+    const PetscInt q = std::get<0>(entries[groupStart[g]]);
+    if (sh.leaf[q] >= 0) groupRoots.push_back({sh.remote[sh.leaf[q]].rank, remoteCompact[q]});
+  }
+  PetscSF      gsf;
+  MPI_Datatype block;
+  PetscCall(PetscSFCreate(comm, &gsf));
+  PetscCall(PetscSFSetGraph(gsf, numRoots, numLeaves, NULL, PETSC_COPY_VALUES, groupRoots.data(), PETSC_COPY_VALUES));
+  std::vector<PetscInt> theirs(kBlock * numLeaves, -1);
+  PetscCallMPI(MPI_Type_contiguous(kBlock, MPIU_INT, &block));
+  PetscCallMPI(MPI_Type_commit(&block));
+  PetscCall(PetscSFBcastBegin(gsf, block, blocks.data(), theirs.data(), MPI_REPLACE));
+  PetscCall(PetscSFBcastEnd(gsf, block, blocks.data(), theirs.data(), MPI_REPLACE));
+  PetscCallMPI(MPI_Type_free(&block));
+  PetscCall(PetscSFDestroy(&gsf));
+  std::vector<std::pair<PetscInt, PetscSFNode>> leaves;
+  for (size_t g = 0, l = 0; g + 1 < groupStart.size(); ++g) {
+    const PetscInt q = std::get<0>(entries[groupStart[g]]), n = groupStart[g + 1] - groupStart[g];
+    if (sh.leaf[q] < 0) continue;
+    const PetscInt *their = &theirs[kBlock * l++];
+    PetscCheck(their[0] == n, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: shared point %" PetscInt_FMT " has %" PetscInt_FMT " fine points here, %" PetscInt_FMT " on its owner", q, n, their[0]);
+    for (PetscInt i = 0; i < n; ++i) leaves.push_back({std::get<3>(entries[groupStart[g] + i]), {sh.remote[sh.leaf[q]].rank, their[1 + i]}});
+  }
+  std::sort(leaves.begin(), leaves.end(), [](const auto &a, const auto &b) { return a.first < b.first; });
+  std::vector<PetscInt>    ilocal(leaves.size());
+  std::vector<PetscSFNode> iremote(leaves.size());
+  for (size_t i = 0; i < leaves.size(); ++i) ilocal[i] = leaves[i].first, iremote[i] = leaves[i].second;
+  PetscCall(PetscSFCreate(comm, &fsf));
+  PetscCall(PetscSFSetGraph(fsf, f.End(), (PetscInt)leaves.size(), ilocal.data(), PETSC_COPY_VALUES, iremote.data(), PETSC_COPY_VALUES));
+  PetscCall(DMSetPointSF(dm, fsf));
+  PetscCall(PetscSFDestroy(&fsf));
+  PetscFunctionReturn(0);
+}
+
+// Every label but depth and cell type: a child carries its parent's values, a fine face lying in a coarse
+// face that face's values. (Values on coarse edges and vertices are not carried: the solver reads cells
+// and faces only.)
+PetscErrorCode CarryLabels(DM coarse, DM fine, const Coarse &m, const Fine &f)
+{
+  // The fine faces in each coarse face: faces[start[F - fS] .. start[F - fS + 1]).
+  const std::vector<PetscInt> &carrier = f.dim == 2 ? f.edgeCarrier : f.triCarrier;
+  std::vector<PetscInt>        start(m.fE - m.fS + 1, 0), faces;
+  for (PetscInt q : carrier)
+    if (q >= m.fS && q < m.fE) ++start[q - m.fS + 1];
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  faces.resize(start.back());
+  std::vector<PetscInt> fill(start.begin(), start.end() - 1);
+  for (PetscInt j = 0; j < (PetscInt)carrier.size(); ++j)
+    if (carrier[j] >= m.fS && carrier[j] < m.fE) faces[fill[carrier[j] - m.fS]++] = f.dim == 2 ? f.Edge(j) : f.Tri(j);
+  // The children of each coarse cell are contiguous (see Cut).
+  std::vector<PetscInt> children(m.NumCells() + 1, 0);
+  for (PetscInt c : f.parentOf) ++children[c + 1];
+  std::partial_sum(children.begin(), children.end(), children.begin());
+  PetscFunctionBeginUser;
+  PetscCall(ForEachLabelStratum(coarse, fine, [&](DMLabel label, PetscInt value, const PetscInt *points, PetscInt n) -> PetscErrorCode {
+    PetscFunctionBeginUser;
+    for (PetscInt i = 0; i < n; ++i) {
+      const PetscInt q = points[i];
+      if (q >= m.cS && q < m.cE)
+        for (PetscInt t = children[q - m.cS]; t < children[q - m.cS + 1]; ++t) PetscCall(DMLabelSetValue(label, t, value));
+      if (q >= m.fS && q < m.fE)
+        for (PetscInt k = start[q - m.fS]; k < start[q - m.fS + 1]; ++k) PetscCall(DMLabelSetValue(label, faces[k], value));
+    }
+    PetscFunctionReturn(0);
+  }));
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked, DM *fine, std::vector<PetscInt> *parent)
+{
+  Coarse   m;
+  Sharing  sh;
+  Children ch;
+  Fine     f;
+  DM       dm;
+  PetscFunctionBeginUser;
+  PetscCall(ReadCoarse(coarse, m));
+  PetscCheck((PetscInt)marked.size() == m.NumCells(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "RefineMarkedBisection: %zu marks for %" PetscInt_FMT " cells", marked.size(), m.NumCells());
+  PetscCall(GetSharing(coarse, m, sh));
+  const std::vector<PetscInt> rank = EdgeOrder(m);
+  std::vector<char>           mark;
+  PetscCall(CloseMarks(PetscObjectComm((PetscObject)coarse), m, sh, rank, marked, mark));
+  Cut(m, rank, mark, ch);
+  std::vector<PetscInt> gnum;
+  PetscCall(NumberVertices(coarse, m, sh, mark, gnum));
+  FinePoints(m, mark, ch, gnum, f);
+
+  PetscCall(DMCreate(PetscObjectComm((PetscObject)coarse), &dm));
+  PetscCall(DMSetType(dm, DMPLEX));
+  PetscCall(DMSetDimension(dm, m.dim));
+  PetscCall(SetCones(dm, ch, f));
+  PetscCall(DMPlexSymmetrize(dm));
+  std::vector<CellTypeStratum> types = {{m.dim == 2 ? DM_POLYTOPE_TRIANGLE : DM_POLYTOPE_TETRAHEDRON, 0, f.nc}, {DM_POLYTOPE_POINT, f.Vertex(0), f.Vertex(f.nv)}, {DM_POLYTOPE_SEGMENT, f.Edge(0), f.End()}};
+  if (m.dim == 3) types.push_back({DM_POLYTOPE_TRIANGLE, f.Tri(0), f.Tri(f.nt)});
+  PetscCall(SetCellTypeStrata(dm, types));
+  PetscCall(DMPlexStratify(dm));
+  PetscCall(SetPointSF(coarse, dm, m, sh, gnum, f));
+  {
+    std::vector<PetscReal> x(3 * f.nv);
+    for (PetscInt i = 0; i < f.nv; ++i) std::copy(&ch.x[3 * f.vertexId[i]], &ch.x[3 * f.vertexId[i]] + 3, &x[3 * i]);
+    PetscCall(SetVertexCoordinates(dm, m.cdim, f.Vertex(0), f.nv, x));
+  }
+  PetscCall(CarryLabels(coarse, dm, m, f));
+  const char *name;
+  PetscCall(PetscObjectGetName((PetscObject)coarse, &name));
+  PetscCall(PetscObjectSetName((PetscObject)dm, name));
+  if (parent) *parent = f.parentOf;
+  *fine = dm;
+  PetscFunctionReturn(0);
+}
+
+} // namespace signorini
