@@ -4,7 +4,8 @@
   an inactive contact part eta is at most the square root of the contact term's round-off (the bound has
   sqrt(gamma));
 - a guaranteed upper bound, eta >= the true energy error, with efficiency index eta / error <= 3 on the
-  manufactured scenes (comparison with the exact solution) at three mesh sizes each. Their u_D (2D top,
+  manufactured scenes (comparison with the exact solution) at three mesh sizes each, and across a kappa
+  jump of 1e6 (stiff-layers-across). Their u_D (2D top,
   3D top) and g are not affine on the boundary faces, so the theory guarantees the bound only up to that
   data approximation: the test checks it holds all the same;
 - the same estimate on 1 and 2 ranks (1e-10 relative; independent computations);
@@ -52,6 +53,8 @@ for name, args, norm, contact in linear:
 # 2. Reliability and efficiency on the manufactured scenes.
 sizes = [("manufactured-2d", ["-refine", str(r)]) for r in [0, 1, 2]]
 sizes += [("manufactured-3d", ["-box_faces", str(n)]) for n in [6, 8, 12]]
+# A kappa jump of 1e6 across Gamma_C (the companion's kappa-weighted vertex average keeps the index near 2).
+sizes += [("stiff-layers-across", ["-refine", str(r)]) for r in [0, 1]]
 for name, extra in sizes:
     _, _, _, s = run(scene(name) + ["-space", "cr"] + extra)
     eta, err = s["estimate"]["eta"], s["error"]["energy"]
