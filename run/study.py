@@ -53,7 +53,7 @@ def run_study(scene, options, out_dir, ranks=1, quiet=False):
 
 
 def write_csv(study, path):
-    fields = ["element", "N", "h", "cells", "dofs", "l2", "h1_semi", "h1", "newton_iterations", "ksp_iterations",
+    fields = ["element", "N", "h", "cells", "dofs", "l2", "h1_semi", "h1", "energy", "eta", "efficiency", "newton_iterations", "ksp_iterations",
               "solve_seconds", "total_seconds", "peak_rss_bytes", "error_against"]
     tmp = path + ".tmp"
     with open(tmp, "w", newline="") as f:
@@ -63,6 +63,8 @@ def write_csv(study, path):
             key = "error_reference" if "error_reference" in r else "error_exact"
             row = {k: r[k] for k in fields if k in r}
             row.update(r.get(key, {}))
+            if "estimate" in r:  # the estimate of the energy error and eta / error (efficiency index)
+                row.update({k: r["estimate"][k] for k in ["eta", "efficiency"] if k in r["estimate"]})
             row["error_against"] = key.split("_")[1]
             w.writerow(row)
     os.replace(tmp, path)

@@ -16,13 +16,13 @@ PetscErrorCode ErrorOptionsFromCommandLine(MPI_Comm comm, PetscInt &degree)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ErrorAgainstExact(const Space &space, const Problem &problem, Vec u, PetscInt degree, ErrorNorms &e)
+PetscErrorCode ErrorAgainstExact(const Space &space, const Problem &problem, const System &sys, Vec u, PetscInt degree, ErrorNorms &e)
 {
   Vec                loc;
   const PetscScalar *a;
   std::string        error;
   const Quadrature   rule = SimplexQuadrature(space.dim, degree);
-  PetscReal          sums[2] = {0, 0};
+  PetscReal          sums[3] = {0, 0, 0};
   PetscFunctionBeginUser;
   PetscCall(StagePush(Stage::Error));
   PetscCall(DMGetLocalVector(space.dm, &loc));
@@ -37,6 +37,7 @@ PetscErrorCode ErrorAgainstExact(const Space &space, const Problem &problem, Vec
     space.Grad(c, a, g, gradh);
     problem.exact->SetCellSet(space.CellSet(c));
     problem.exactGrad->SetCellSet(space.CellSet(c));
+    PetscReal semi2 = 0;
     for (PetscInt q = 0; q < rule.Size(); ++q) {
       const PetscReal *lambda = rule.Point(q);
       PetscReal        x[3], du[3];
@@ -47,17 +48,20 @@ PetscErrorCode ErrorAgainstExact(const Space &space, const Problem &problem, Vec
       PetscReal d2 = 0;
       for (PetscInt d = 0; d < dim; ++d) d2 += (du[d] - gradh[d]) * (du[d] - gradh[d]);
       sums[0] += rule.weights[q] * g.volume * (ue - uh) * (ue - uh);
-      sums[1] += rule.weights[q] * g.volume * d2;
+      semi2 += rule.weights[q] * g.volume * d2;
     }
+    sums[1] += semi2;
+    sums[2] += sys.Kappa(c) * semi2;
   }
   PetscCall(VecRestoreArrayRead(loc, &a));
   PetscCall(DMRestoreLocalVector(space.dm, &loc));
   MPI_Comm comm = PetscObjectComm((PetscObject)space.dm);
   PetscCall(CheckAll(comm, error.empty(), error));
-  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, sums, 2, MPIU_REAL, MPI_SUM, comm));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, sums, 3, MPIU_REAL, MPI_SUM, comm));
   e.l2     = std::sqrt(sums[0]);
   e.h1semi = std::sqrt(sums[1]);
   e.h1     = std::sqrt(sums[0] + sums[1]);
+  e.energy = std::sqrt(sums[2]);
   PetscCall(StagePop(Stage::Error));
   PetscFunctionReturn(0);
 }
@@ -88,12 +92,12 @@ struct CellFunction {
 };
 } // namespace
 
-PetscErrorCode ErrorAgainstReference(const Space &coarse, Vec uH, const Space &fine, Vec uh, const std::vector<PetscInt> &parent, ErrorNorms &e)
+PetscErrorCode ErrorAgainstReference(const Space &coarse, Vec uH, const Space &fine, const System &fineSys, Vec uh, const std::vector<PetscInt> &parent, ErrorNorms &e)
 {
   Vec                locH, loch;
   const PetscScalar *aH, *ah;
   const Quadrature   rule = SimplexQuadrature(fine.dim, 2);
-  PetscReal          sums[2] = {0, 0};
+  PetscReal          sums[3] = {0, 0, 0};
   PetscFunctionBeginUser;
   PetscCall(StagePush(Stage::Error));
   PetscCheck((PetscInt)parent.size() == fine.NumCells(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "parent map has %d entries for %d fine cells", (int)parent.size(), (int)fine.NumCells());
@@ -110,6 +114,7 @@ PetscErrorCode ErrorAgainstReference(const Space &coarse, Vec uH, const Space &f
     PetscReal d2 = 0;
     for (PetscInt d = 0; d < fine.dim; ++d) d2 += (fH.grad[d] - fh.grad[d]) * (fH.grad[d] - fh.grad[d]);
     sums[1] += d2 * fh.g.volume;
+    sums[2] += fineSys.Kappa(c) * d2 * fh.g.volume;
     for (PetscInt q = 0; q < rule.Size(); ++q) {
       PetscReal x[3];
       fine.Point(c, rule.Point(q), x);
@@ -121,10 +126,11 @@ PetscErrorCode ErrorAgainstReference(const Space &coarse, Vec uH, const Space &f
   PetscCall(VecRestoreArrayRead(loch, &ah));
   PetscCall(DMRestoreLocalVector(coarse.dm, &locH));
   PetscCall(DMRestoreLocalVector(fine.dm, &loch));
-  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, sums, 2, MPIU_REAL, MPI_SUM, PetscObjectComm((PetscObject)fine.dm)));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, sums, 3, MPIU_REAL, MPI_SUM, PetscObjectComm((PetscObject)fine.dm)));
   e.l2     = std::sqrt(sums[0]);
   e.h1semi = std::sqrt(sums[1]);
   e.h1     = std::sqrt(sums[0] + sums[1]);
+  e.energy = std::sqrt(sums[2]);
   PetscCall(StagePop(Stage::Error));
   PetscFunctionReturn(0);
 }

@@ -41,6 +41,7 @@ struct Settings {
   StudyOptions    study;
   SolveOptions    solve;
   NestedOptions   nested;
+  EstimateOptions estimate;
 };
 
 // Under -help every component lists its options whatever else is on the command line: an error of one
@@ -58,6 +59,7 @@ static PetscErrorCode ReadSettings(MPI_Comm comm, Settings &s, bool help)
     [&] { return StudyOptionsFromCommandLine(comm, s.problem, s.study); },
     [&] { return SolveOptionsFromCommandLine(comm, s.solve); },
     [&] { return NestedOptionsFromCommandLine(comm, s.nested); },
+    [&] { return EstimateOptionsFromCommandLine(comm, s.estimate); },
   };
   PetscFunctionBeginUser;
   for (const auto &read : readers) {
@@ -124,7 +126,7 @@ static PetscErrorCode Run(MPI_Comm comm)
     PetscReal h0;
     if (N0 > 0) h0 = (s.mesh.upper[0] - s.mesh.lower[0]) / N0;
     else PetscCall(MeshSize(mesh, &h0));
-    ConvergenceStudy study(mesh, N0, h0, s.problem, s.assembly, s.errorDegree, s.study);
+    ConvergenceStudy study(mesh, N0, h0, s.problem, s.assembly, s.estimate, s.errorDegree, s.study);
     PetscCall(SolveMeshes(s.problem, study));
     PetscCall(study.Finish());
     PetscCall(DMDestroy(&mesh));
@@ -134,6 +136,7 @@ static PetscErrorCode Run(MPI_Comm comm)
   po.element  = s.element;
   po.assembly = s.assembly;
   po.solve    = s.solve;
+  po.estimate = s.estimate;
   po.withMesh = [&](const Space &space) {
     PetscFunctionBeginUser;
     if (!s.output.file.empty()) PetscCall(OutputBegin(space, s.output, output));
@@ -158,7 +161,7 @@ static PetscErrorCode Run(MPI_Comm comm)
   Vec    u     = fine.u;
   PetscCall(MeshLevelsDestroy(levels));
   report.solve = fine.result;
-  if (s.problem.HasExact()) PetscCall(ErrorAgainstExact(space, s.problem, u, s.errorDegree, report.error));
+  if (s.problem.HasExact()) PetscCall(ErrorAgainstExact(space, s.problem, fine.sys, u, s.errorDegree, report.error));
 
   report.scene         = s.problem.scene;
   report.element       = ElementName(s.element);
@@ -176,7 +179,9 @@ static PetscErrorCode Run(MPI_Comm comm)
   report.ranks         = (PetscInt)meshInfo.cellsPerRank.size();
   report.hasExact      = s.problem.HasExact();
   ReportRecordExpressions(s.problem, report);
-  if (!s.output.file.empty()) PetscCall(OutputEnd(space, s.problem, fine.sys, u, output));
+  if (!s.output.file.empty()) PetscCall(OutputEnd(space, s.problem, fine.sys, u, output, fine.estimate.cellEta2));
+  report.estimate = std::move(fine.estimate);
+  std::vector<PetscReal>().swap(report.estimate.cellEta2); // the report needs the sums only
   PetscCall(ReportGatherTimes(comm, start, report));
   PetscCall(ReportGatherMemory(comm, fine.sys.A, report));
   PetscCall(ReportPrint(comm, report));

@@ -181,6 +181,7 @@ PetscErrorCode NestedIteration::Next(Step &step, bool &more)
     PipelineOptions &lo = step.options; // the user's solver settings, without the linear comparison (finest level only)
     lo.solve.compareLinear = false;
     lo.kktHint             = false;
+    lo.estimate.enabled    = false; // the estimate is of the finest solution
     lo.solve.initialGuess  = false;
     lo.keepMesh            = false;
     lo.withMesh            = [this, l = level_](const Space &) { return DMDestroy(&levels_.dm[l]); }; // the space keeps the layout, not the mesh

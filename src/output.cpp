@@ -358,7 +358,7 @@ static PetscErrorCode WriteDofGrid(const Space &space, Vec u, PetscViewer viewer
 }
 
 // The XDMF files of OutputFiles, after FILE.h5, as text.
-static std::vector<std::string> XdmfFiles(const Output &out, PetscInt contactFaces, PetscInt contactPoints, PetscInt dofs, bool p1)
+static std::vector<std::string> XdmfFiles(const Output &out, PetscInt contactFaces, PetscInt contactPoints, PetscInt dofs, bool p1, bool eta)
 {
   const std::string        h5 = BaseName(out.opts.file);
   std::vector<std::string> text;
@@ -367,6 +367,7 @@ static std::vector<std::string> XdmfFiles(const Output &out, PetscInt contactFac
   mesh.Geometry(out.nv, out.dim, "/geometry/vertices");
   mesh.Attribute("u_h (vertex)", true, out.nv, "/vertex_fields/u_vertex_value");
   mesh.Attribute("u_h (cell mean)", false, out.nc, "/cell_fields/u_cell_value");
+  if (eta) mesh.Attribute("eta", false, out.nc, "/cell_fields/eta");
   text.push_back(mesh.Text());
   if (out.opts.contact) {
     XdmfGrid contact(h5, "Gamma_C");
@@ -386,7 +387,22 @@ static std::vector<std::string> XdmfFiles(const Output &out, PetscInt contactFac
   return text;
 }
 
-PetscErrorCode OutputEnd(const Space &space, const Problem &problem, const System &sys, Vec u, Output &out)
+// The indicators eta_T = sqrt(cellEta2) as a vector of the cell layout (local entry of cell c: c).
+static PetscErrorCode IndicatorField(const std::vector<PetscReal> &cellEta2, DM cellLayout, Vec eta)
+{
+  Vec          loc;
+  PetscScalar *a;
+  PetscFunctionBeginUser;
+  PetscCall(DMGetLocalVector(cellLayout, &loc));
+  PetscCall(VecGetArray(loc, &a));
+  for (size_t c = 0; c < cellEta2.size(); ++c) a[c] = std::sqrt(cellEta2[c]);
+  PetscCall(VecRestoreArray(loc, &a));
+  PetscCall(DMLocalToGlobal(cellLayout, loc, INSERT_VALUES, eta));
+  PetscCall(DMRestoreLocalVector(cellLayout, &loc));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode OutputEnd(const Space &space, const Problem &problem, const System &sys, Vec u, Output &out, const std::vector<PetscReal> &cellEta2)
 {
   MPI_Comm    comm = PetscObjectComm((PetscObject)space.dm);
   Vec         cellMean, vertexAvg;
@@ -403,6 +419,17 @@ PetscErrorCode OutputEnd(const Space &space, const Problem &problem, const Syste
   PetscCall(PetscViewerHDF5Open(comm, out.h5.c_str(), FILE_MODE_APPEND, &viewer));
   PetscCall(ViewInGroup(viewer, "/vertex_fields", vertexAvg));
   PetscCall(ViewInGroup(viewer, "/cell_fields", cellMean));
+  const bool eta = !cellEta2.empty() || space.NumCells() == 0; // a rank without cells has an estimate too
+  PetscBool  anyEta, etaAll = eta ? PETSC_TRUE : PETSC_FALSE;
+  PetscCallMPI(MPI_Allreduce(&etaAll, &anyEta, 1, MPIU_BOOL, MPI_LAND, comm));
+  if (anyEta) {
+    Vec field;
+    PetscCall(DMCreateGlobalVector(out.cellLayout, &field));
+    PetscCall(PetscObjectSetName((PetscObject)field, "eta"));
+    PetscCall(IndicatorField(cellEta2, out.cellLayout, field));
+    PetscCall(ViewInGroup(viewer, "/cell_fields", field));
+    PetscCall(VecDestroy(&field));
+  }
   PetscCall(ViewInGroup(viewer, "/fields", u)); // the raw DOF vector (faces for CR, vertices for P1)
   if (out.opts.contact) PetscCall(WriteContactGrid(space, problem, sys, u, viewer, &contactFaces, &contactPoints));
   if (out.opts.cr) PetscCall(WriteDofGrid(space, u, viewer, &dofs));
@@ -410,7 +437,7 @@ PetscErrorCode OutputEnd(const Space &space, const Problem &problem, const Syste
   PetscCall(VecDestroy(&cellMean));
   PetscCall(VecDestroy(&vertexAvg));
 
-  const std::vector<std::string> names = OutputFiles(out.opts), text = XdmfFiles(out, contactFaces, contactPoints, dofs, space.element == Element::P1);
+  const std::vector<std::string> names = OutputFiles(out.opts), text = XdmfFiles(out, contactFaces, contactPoints, dofs, space.element == Element::P1, anyEta);
   for (size_t i = 0; i < text.size(); ++i) PetscCall(out.files.AddText(comm, names[i + 1], text[i]));
   PetscCall(out.files.Commit(comm)); // FILE.h5 and its XDMF files together
   out.h5.clear();

@@ -21,7 +21,8 @@ PetscErrorCode PipelineSetUp(DM mesh, const Problem &problem, const PipelineOpti
   PetscFunctionBeginUser;
   PetscCall(PetscTime(&t0));
   PetscCall(StagePush(Stage::Setup));
-  PetscCall(SpaceCreate(mesh, o.element, problem, m.space));
+  // The CR estimate's companion sums vertex values over the ranks; P1 has its vertices as DOFs.
+  PetscCall(SpaceCreate(mesh, o.element, problem, m.space, false, o.element == Element::CR && o.estimate.enabled));
   PetscCall(StagePop(Stage::Setup));
   if (o.withMesh) {
     PetscCall(PetscTime(&t1));
@@ -45,6 +46,7 @@ PetscErrorCode PipelineSolve(const Problem &problem, const PipelineOptions &o, M
   // SNES judges convergence by a residual norm that the stiffest rows dominate; the KKT conditions judge
   // the answer itself, so a solve that stopped early does not pass unseen.
   if (o.kktHint) PetscCall(KKTHint(m.space, m.sys, m.result, o.solve.kktTolerance));
+  if (o.estimate.enabled) PetscCall(EstimateError(m.space, problem, m.sys, m.u, m.estimate));
   PetscFunctionReturn(0);
 }
 

@@ -93,7 +93,12 @@ PetscErrorCode ReportPrint(MPI_Comm comm, const Report &r)
   }
   if (r.solve.linearSeconds >= 0) o << Format("  solve %.3f s, one linear CG + BoomerAMG solve of the same A, b %.3f s (%d iterations): ratio %.2f\n", r.solve.solveSeconds, r.solve.linearSeconds, (int)r.solve.linearKspIts, r.solve.solveSeconds / r.solve.linearSeconds);
   o << Format("  stationarity max|r| / max|load| on free DOFs %.3e, energy J(u_h) = %.12e\n", (double)r.solve.stationarity, (double)r.solve.energy);
-  if (r.hasExact) o << Format("  error vs exact: L2 %.6e, broken H1 seminorm %.6e, H1 %.6e\n", (double)r.error.l2, (double)r.error.h1semi, (double)r.error.h1);
+  if (r.hasExact) o << Format("  error vs exact: L2 %.6e, broken H1 seminorm %.6e, H1 %.6e, energy %.6e\n", (double)r.error.l2, (double)r.error.h1semi, (double)r.error.h1, (double)r.error.energy);
+  if (r.estimate.computed) {
+    const Estimate &e = r.estimate;
+    o << Format("  estimate of the energy error: eta %.6e (flux %.3e, nonconformity %.3e, contact %.3e, oscillation %.3e), %.3f s\n", (double)e.eta, (double)e.flux, (double)e.nonconformity, (double)e.contact, (double)e.oscillation, e.seconds);
+    if (r.hasExact) o << Format("  energy error %.6e, estimate %.6e, efficiency index eta/error %.3f\n", (double)r.error.energy, (double)e.eta, (double)(e.eta / r.error.energy));
+  }
   o << "  time [s]:";
   for (int s = 0; s < (int)Stage::Count; ++s) o << Format(" %s %.3f", StageName((Stage)s), r.stageSeconds[s]);
   o << Format(", total %.3f\n", r.totalSeconds);
@@ -117,6 +122,13 @@ static std::string Str(const std::string &s)
     else out += c;
   }
   return out + "\"";
+}
+
+std::string EstimateJSON(const Estimate &e, const ErrorNorms *error)
+{
+  std::string o = "{\"eta\": " + Num(e.eta) + ", \"flux\": " + Num(e.flux) + ", \"nonconformity\": " + Num(e.nonconformity) + ", \"contact\": " + Num(e.contact) + ", \"oscillation\": " + Num(e.oscillation) + ", \"seconds\": " + Num(e.seconds);
+  if (error) o += ", \"efficiency\": " + Num(e.eta / error->energy);
+  return o + "}";
 }
 
 void ReportRecordExpressions(const Problem &p, Report &r)
@@ -170,7 +182,8 @@ PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string
   if (r.solve.vi)
     o << "  \"kkt\": {\"min_gap\": " << Num(r.solve.primal) << ", \"min_pressure\": " << Num(r.solve.dual) << ", \"max_complementarity\": " << Num(r.solve.complementarity) << ", \"max_pressure\": " << Num(r.solve.pressureMax) << ", \"max_gap\": " << Num(r.solve.gapMax) << ", \"relative\": " << Num(r.solve.kktRelative) << ", \"active\": " << r.solve.active << "},\n";
   o << "  \"stationarity\": " << Num(r.solve.stationarity) << ",\n  \"energy\": " << Num(r.solve.energy) << ",\n";
-  if (r.hasExact) o << "  \"error\": {\"l2\": " << Num(r.error.l2) << ", \"h1_semi\": " << Num(r.error.h1semi) << ", \"h1\": " << Num(r.error.h1) << "},\n";
+  if (r.hasExact) o << "  \"error\": {\"l2\": " << Num(r.error.l2) << ", \"h1_semi\": " << Num(r.error.h1semi) << ", \"h1\": " << Num(r.error.h1) << ", \"energy\": " << Num(r.error.energy) << "},\n";
+  if (r.estimate.computed) o << "  \"estimate\": " << EstimateJSON(r.estimate, r.hasExact ? &r.error : nullptr) << ",\n";
   o << "  \"time\": {";
   for (int s = 0; s < (int)Stage::Count; ++s) o << Str(StageName((Stage)s)) << ": " << Num(r.stageSeconds[s]) << ", ";
   o << "\"total\": " << Num(r.totalSeconds) << "},\n";

@@ -414,6 +414,37 @@ static PetscErrorCode BuildFaceTables(Space &s, PetscInt fStart, PetscInt fEnd)
   PetscFunctionReturn(0);
 }
 
+// The vertex exchange (Space::vertexSF) from the mesh's point SF: each leaf vertex learns its index among
+// the owner's vertices.
+static PetscErrorCode BuildVertexSF(Space &s, PetscInt vEnd)
+{
+  PetscSF            pointSF;
+  PetscInt           pStart, pEnd, nroots, nleaves;
+  const PetscInt    *leaves;
+  const PetscSFNode *remotes;
+  PetscFunctionBeginUser;
+  PetscCall(DMPlexGetChart(s.mesh, &pStart, &pEnd));
+  PetscCall(DMGetPointSF(s.mesh, &pointSF));
+  PetscCall(PetscSFGetGraph(pointSF, &nroots, &nleaves, &leaves, &remotes));
+  std::vector<PetscInt>    local;
+  std::vector<PetscSFNode> remote;
+  if (nroots >= 0) {
+    std::vector<PetscInt> index(pEnd - pStart, -1), remoteIndex(pEnd - pStart, -1);
+    for (PetscInt v = s.vStart; v < vEnd; ++v) index[v - pStart] = v - s.vStart;
+    PetscCall(PetscSFBcastBegin(pointSF, MPIU_INT, index.data(), remoteIndex.data(), MPI_REPLACE));
+    PetscCall(PetscSFBcastEnd(pointSF, MPIU_INT, index.data(), remoteIndex.data(), MPI_REPLACE));
+    for (PetscInt i = 0; i < nleaves; ++i) {
+      const PetscInt p = leaves ? leaves[i] : i;
+      if (p < s.vStart || p >= vEnd) continue;
+      local.push_back(p - s.vStart);
+      remote.push_back({remotes[i].rank, remoteIndex[p - pStart]});
+    }
+  }
+  PetscCall(PetscSFCreate(PetscObjectComm((PetscObject)s.mesh), &s.vertexSF));
+  PetscCall(PetscSFSetGraph(s.vertexSF, vEnd - s.vStart, (PetscInt)local.size(), local.data(), PETSC_COPY_VALUES, remote.data(), PETSC_COPY_VALUES));
+  PetscFunctionReturn(0);
+}
+
 // -log_view lists the steps of SpaceCreate under the Setup stage.
 static PetscErrorCode SpaceEvents(PetscLogEvent ev[4])
 {
@@ -427,7 +458,7 @@ static PetscErrorCode SpaceEvents(PetscLogEvent ev[4])
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Space &s, bool interiorFaces)
+PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Space &s, bool interiorFaces, bool vertexExchange)
 {
   PetscInt      vStart, vEnd, fStart, fEnd;
   PetscLogEvent ev[4];
@@ -452,6 +483,7 @@ PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Spa
   PetscCall(PetscLogEventBegin(ev[2], 0, 0, 0, 0));
   PetscCall(CollectBoundary(s, problem));
   if (interiorFaces) PetscCall(BuildFaceTables(s, fStart, fEnd));
+  if (vertexExchange) PetscCall(BuildVertexSF(s, vEnd));
   PetscCall(PetscLogEventEnd(ev[2], 0, 0, 0, 0));
   PetscCall(PetscLogEventBegin(ev[3], 0, 0, 0, 0));
   PetscCall(ClassifyDofs(s, problem));
@@ -484,6 +516,7 @@ PetscErrorCode SpaceDestroy(Space &s)
   PetscCall(DMDestroy(&s.dm));
   PetscCall(ISLocalToGlobalMappingDestroy(&s.ltog));
   PetscCall(PetscSFDestroy(&s.sharedFaceSF));
+  PetscCall(PetscSFDestroy(&s.vertexSF));
   s = Space();
   PetscFunctionReturn(0);
 }

@@ -11,13 +11,13 @@ bool           gRegistered = false;
 
 const char *StageName(Stage s)
 {
-  static const char *names[kCount] = {"mesh", "distribute", "refine", "setup", "assemble", "solve", "error", "output"};
+  static const char *names[kCount] = {"mesh", "distribute", "refine", "setup", "assemble", "solve", "estimate", "error", "output"};
   return names[(int)s];
 }
 
 PetscErrorCode StagesRegister()
 {
-  static const char *logNames[kCount] = {"Mesh", "Distribute", "Refine", "Setup", "Assemble", "Solve", "Error", "Output"};
+  static const char *logNames[kCount] = {"Mesh", "Distribute", "Refine", "Setup", "Assemble", "Solve", "Estimate", "Error", "Output"};
   PetscFunctionBeginUser;
   if (gRegistered) PetscFunctionReturn(0);
   for (int i = 0; i < kCount; ++i) {

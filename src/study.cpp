@@ -48,7 +48,7 @@ static PetscErrorCode PrintTable(MPI_Comm comm, const std::vector<StudyRow> &row
 {
   std::ostringstream o;
   PetscFunctionBeginUser;
-  o << Format("%-4s %6s %10s %9s %9s %12s %6s %12s %6s %12s %6s %6s %6s %9s %9s %9s\n", "elem", "N", "h", "cells", "DOFs", "L2", "rate", "H1semi", "rate", "H1", "rate", "Newton", "KSP", "solve[s]", "total[s]", "peak[MB]");
+  o << Format("%-4s %6s %10s %9s %9s %12s %6s %12s %6s %12s %6s %12s %6s %6s %6s %9s %9s %9s\n", "elem", "N", "h", "cells", "DOFs", "L2", "rate", "H1semi", "rate", "H1", "rate", "eta", "eta/E", "Newton", "KSP", "solve[s]", "total[s]", "peak[MB]");
   for (size_t i = 0; i < rows.size(); ++i) {
     const StudyRow   &r   = rows[i];
     const ErrorNorms &e   = r.hasReference ? r.reference : r.exact;
@@ -60,14 +60,16 @@ static PetscErrorCode PrintTable(MPI_Comm comm, const std::vector<StudyRow> &row
       rates[1]            = Format("%.2f", (double)Rate(p.h1semi, e.h1semi, rows[i - 1].h, r.h));
       rates[2]            = Format("%.2f", (double)Rate(p.h1, e.h1, rows[i - 1].h, r.h));
     }
-    o << Format("%-4s %6d %10.4g %9d %9d %12.5e %6s %12.5e %6s %12.5e %6s %6d %6d %9.3f %9.3f %9.1f\n", r.element.c_str(), (int)r.N, (double)r.h, (int)r.cells, (int)r.dofs, has ? (double)e.l2 : NAN, rates[0].c_str(), has ? (double)e.h1semi : NAN, rates[1].c_str(),
-                has ? (double)e.h1 : NAN, rates[2].c_str(), (int)r.solve.newtonIts, (int)r.solve.kspIts, r.solveSeconds, r.totalSeconds, r.peakRSS / 1048576.0);
+    // the efficiency index eta / energy error, against the exact solution or the reference
+    const std::string eta = r.estimate.computed ? Format("%.5e", (double)r.estimate.eta) : "", index = r.estimate.computed && has ? Format("%.2f", (double)(r.estimate.eta / e.energy)) : "";
+    o << Format("%-4s %6d %10.4g %9d %9d %12.5e %6s %12.5e %6s %12.5e %6s %12s %6s %6d %6d %9.3f %9.3f %9.1f\n", r.element.c_str(), (int)r.N, (double)r.h, (int)r.cells, (int)r.dofs, has ? (double)e.l2 : NAN, rates[0].c_str(), has ? (double)e.h1semi : NAN, rates[1].c_str(),
+                has ? (double)e.h1 : NAN, rates[2].c_str(), eta.c_str(), index.c_str(), (int)r.solve.newtonIts, (int)r.solve.kspIts, r.solveSeconds, r.totalSeconds, r.peakRSS / 1048576.0);
   }
   PetscCall(PetscPrintf(comm, "%s", o.str().c_str()));
   PetscFunctionReturn(0);
 }
 
-static std::string JsonErrors(const ErrorNorms &e) { return Format("{\"l2\": %.17g, \"h1_semi\": %.17g, \"h1\": %.17g}", (double)e.l2, (double)e.h1semi, (double)e.h1); }
+static std::string JsonErrors(const ErrorNorms &e) { return Format("{\"l2\": %.17g, \"h1_semi\": %.17g, \"h1\": %.17g, \"energy\": %.17g}", (double)e.l2, (double)e.h1semi, (double)e.h1, (double)e.energy); }
 
 static PetscErrorCode WriteJSON(MPI_Comm comm, const std::string &file, const std::string &scene, const StudyOptions &o, PetscInt refN, PetscInt refDofs, const std::vector<StudyRow> &rows)
 {
@@ -85,6 +87,7 @@ static PetscErrorCode WriteJSON(MPI_Comm comm, const std::string &file, const st
     j << ", \"active\": " << r.solve.active << Format(", \"energy\": %.17g", (double)r.solve.energy);
     if (r.hasExact) j << ", \"error_exact\": " << JsonErrors(r.exact);
     if (r.hasReference) j << ", \"error_reference\": " << JsonErrors(r.reference);
+    if (r.estimate.computed) j << ", \"estimate\": " << EstimateJSON(r.estimate, r.hasReference ? &r.reference : r.hasExact ? &r.exact : nullptr);
     j << Format(", \"solve_seconds\": %.6g, \"total_seconds\": %.6g, \"peak_rss_bytes\": %.0f}", r.solveSeconds, r.totalSeconds, r.peakRSS) << (i + 1 < rows.size() ? "," : "") << "\n";
   }
   j << "  ]\n}\n";
@@ -128,6 +131,7 @@ PetscErrorCode ConvergenceStudy::Next(Step &step, bool &more)
   step.options.element  = reference ? o_.referenceElement : o_.elements[step_ / o_.levels];
   step.options.assembly = assembly_;
   step.options.kktHint  = false;
+  step.options.estimate.enabled = estimate_.enabled && !reference;
   step.options.keepMesh = !reference && level == o_.levels - 1 && !o_.profiles.empty();
   PetscCall(PetscTime(&stepStart_));
   PetscFunctionReturn(0);
@@ -156,9 +160,11 @@ PetscErrorCode ConvergenceStudy::Row(MeshSolution &&m)
     PetscCall(WriteSolution(m.space, problem_, m.sys, m.u, ProfileOutput(o_.profiles, e, problem_)));
     if (problem_.HasContact()) PetscCall(WriteContactProfile(m.space, problem_, m.sys, m.u, ProfileBase(o_.profiles, e) + "-contact.csv"));
   }
-  PetscCall(SystemDestroy(m.sys)); // the rows and the reference need the space and u only
+  PetscCall(SystemDestroy(m.sys)); // the rows and the reference need the space, u and sys.kappa only (kept)
   PetscCall(PetscTime(&t1));
   r.solve        = m.result;
+  r.estimate     = std::move(m.estimate);
+  std::vector<PetscReal>().swap(r.estimate.cellEta2);
   r.solveSeconds = m.result.solveSeconds;
   r.element      = ElementName(e);
   r.level        = l;
@@ -174,7 +180,7 @@ PetscErrorCode ConvergenceStudy::Row(MeshSolution &&m)
   double rssSum;
   PetscCall(PeakRSS(comm, &rssSum, &r.peakRSS));
   if (problem_.HasExact()) {
-    PetscCall(ErrorAgainstExact(m.space, problem_, m.u, errorDegree_, r.exact));
+    PetscCall(ErrorAgainstExact(m.space, problem_, m.sys, m.u, errorDegree_, r.exact));
     r.hasExact = true;
   }
   rows_.push_back(r);
@@ -199,7 +205,7 @@ PetscErrorCode ConvergenceStudy::Reference(MeshSolution &r)
   for (PetscInt l = finest; l >= 0; --l) {
     for (size_t i = 0; i < rows_.size(); ++i)
       if (rows_[i].level == l) {
-        PetscCall(ErrorAgainstReference(solved_[i].space, solved_[i].u, ref, r.u, map, rows_[i].reference));
+        PetscCall(ErrorAgainstReference(solved_[i].space, solved_[i].u, ref, r.sys, r.u, map, rows_[i].reference));
         rows_[i].hasReference = true;
       }
     if (l > 0)

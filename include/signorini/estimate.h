@@ -10,6 +10,8 @@
 // with osc = (sum_T (h_T / pi)^2 / kappa_T ||f - Pi_0 f||_T^2)^{1/2} (Poincare on convex cells) and the
 // same for g on Gamma_N, so E <= (b + sqrt(b^2 + 4 gamma)) / 2 with b = F + osc, and
 //   |||u - u_h||| <= N + E,  N = |||u_h - v|||   (nonconformity; zero for P1).
+// eta is the smaller of this bound and a second one from the same inequality with kappa grad_h u_h in
+// place of kappa grad v (see estimate.cpp, Bound), which avoids counting the distance of v from u_h twice.
 // The bound is guaranteed for kappa constant per cell, u_D and psi affine on each boundary face, and an
 // exact discrete solution (the flux is equilibrated up to the solver's residual).
 //
@@ -39,7 +41,29 @@ struct Reconstruction {
   std::vector<PetscReal> flux;
   // v at every local vertex (index v - vStart); empty for P1, where v = u_h.
   std::vector<PetscReal> companion;
+  // Per local cell, h_T / pi kappa_T^{-1/2} ||f - Pi_0 f||_T (see CellLoad), from the evaluations of f that
+  // the flux needed; empty: the estimate evaluates f itself.
+  std::vector<PetscReal> oscillation;
 };
+
+// The load of one cell by the assembly's rule (sys.cellRule), from one evaluation of f per point:
+// moment[k] = int_T f lambda_k (k = 0..dim), so that int_T f = sum_k moment[k] and Pi_0 f = that / |T|, and
+// the oscillation h_T / pi kappa_T^{-1/2} ||f - Pi_0 f||_T (the norm by the same rule). A constant f is not
+// evaluated. `work` is scratch space kept across cells; a NaN of f is reported in `error` (CheckAll after
+// the loop).
+struct CellLoad {
+  PetscReal moment[4];
+  PetscReal oscillation;
+  PetscReal Total(PetscInt dim) const
+  {
+    PetscReal t = 0;
+    for (PetscInt k = 0; k <= dim; ++k) t += moment[k];
+    return t;
+  }
+};
+void ComputeCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, std::string &error);
+// Diameter of the simplex with vertices X (its longest edge).
+PetscReal SimplexDiameter(PetscInt dim, const PetscReal *X);
 
 struct Estimate {
   bool      computed = false;

@@ -1,7 +1,8 @@
 // Output of the mesh and the solution for visualisation: one HDF5 file, written by PETSc's HDF5 viewer in
 // parallel, and XDMF 3 files next to it that ParaView and meshio open, one grid each (meshio reads one grid
 // per file):
-//   FILE.xmf          the mesh (triangles or tetrahedra): u_h at the vertices and the cell mean of u_h;
+//   FILE.xmf          the mesh (triangles or tetrahedra): u_h at the vertices and the cell mean of u_h, and
+//                     with an estimate the indicator eta_T of every cell ("eta", estimate.h);
 //   FILE-contact.xmf  with a contact part, the faces of Gamma_C (segments or triangles), each with its own
 //                     vertices: u_h, psi, the contact pressure (A u - b) / measure and the active set (1 where
 //                     u = psi) at the contact DOFs, i.e. at the face vertices for P1 and on the faces for CR;
@@ -49,7 +50,8 @@ struct Output {
   ~Output();
 };
 PetscErrorCode OutputBegin(const Space &space, const OutputOptions &o, Output &out);
-PetscErrorCode OutputEnd(const Space &space, const Problem &problem, const System &sys, Vec u, Output &out);
+// cellEta2: the estimate's indicators squared per local cell (Estimate::cellEta2), or empty: no "eta" field.
+PetscErrorCode OutputEnd(const Space &space, const Problem &problem, const System &sys, Vec u, Output &out, const std::vector<PetscReal> &cellEta2 = {});
 // Both steps at once, for a space that keeps its mesh.
 PetscErrorCode WriteSolution(const Space &space, const Problem &problem, const System &sys, Vec u, const OutputOptions &o);
 

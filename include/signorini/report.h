@@ -5,6 +5,7 @@
 
 #include "signorini/contact.h"
 #include "signorini/error.h"
+#include "signorini/estimate.h"
 #include "signorini/files.h"
 #include "signorini/mesh.h"
 #include "signorini/stages.h"
@@ -18,6 +19,7 @@ struct Report {
   SolveResult solve;
   bool        hasExact = false;
   ErrorNorms  error;
+  Estimate    estimate; // without the cell indicators; estimate.computed = false: none (-estimate none)
   PetscLogDouble stageSeconds[(int)Stage::Count] = {0}; // max over ranks
   PetscLogDouble totalSeconds = 0;
   // Memory in bytes. Peak resident set size of each process so far (getrusage), summed and max over ranks;
@@ -42,5 +44,8 @@ PetscErrorCode PeakRSS(MPI_Comm comm, double *sum, double *max);
 PetscErrorCode ReportGatherMemory(MPI_Comm comm, Mat A, Report &r);
 PetscErrorCode ReportPrint(MPI_Comm comm, const Report &r);
 PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string &file);
+// The estimate as a JSON object: eta, its parts, its seconds and, with the error known (error not null),
+// the efficiency index eta / energy error.
+std::string EstimateJSON(const Estimate &e, const ErrorNorms *error);
 
 } // namespace signorini

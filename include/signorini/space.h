@@ -100,6 +100,11 @@ struct Space {
   std::vector<InteriorFace> interiorFaces;
   std::vector<SharedFace>   sharedFaces;
   PetscSF                   sharedFaceSF = nullptr;
+  // Only with SpaceCreate(..., vertexExchange = true), for a space without vertex DOFs (CR) that needs
+  // vertex values summed over ranks (the estimate's conforming companion): roots are the local vertices
+  // (v - vStart), leaves the local copies of vertices another rank owns, each pointing at the owner's
+  // vertex. PetscSFReduce sums the copies onto the owner, PetscSFBcast hands the owner's value back.
+  PetscSF                   vertexSF = nullptr;
 
   // The vertex coordinates of a cell, (dim+1)*dim values; converts to a pointer for the functions that
   // take one (keep the object, not the pointer, beyond one expression).
@@ -182,8 +187,8 @@ PetscErrorCode ElementFromCommandLine(MPI_Comm comm, Element &e);
 // Builds the section, cell tables and DOF classification. Checks that every named part exists on the mesh
 // and consists of boundary faces, that no face is in two named parts, that the cells are not degenerate,
 // and that psi <= u_D where Gamma_D and Gamma_C meet (otherwise no u in H^1 satisfies both). With
-// interiorFaces, also the face tables (interiorFaces, sharedFaces, sharedFaceSF).
-PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Space &space, bool interiorFaces = false);
+// interiorFaces, also the face tables (interiorFaces, sharedFaces, sharedFaceSF); with vertexExchange, vertexSF.
+PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Space &space, bool interiorFaces = false, bool vertexExchange = false);
 PetscErrorCode SpaceDestroy(Space &space);
 // Drops the space's mesh clone, so that once the caller drops its own references the DMPlex is freed.
 // Everything but the HDF5 output works on the tables and the layout (assembly, solve, KKT, energy, errors,

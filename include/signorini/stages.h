@@ -6,7 +6,7 @@
 
 namespace signorini {
 
-enum class Stage { Mesh, Distribute, Refine, Setup, Assemble, Solve, Error, Output, Count };
+enum class Stage { Mesh, Distribute, Refine, Setup, Assemble, Solve, Estimate, Error, Output, Count };
 
 const char    *StageName(Stage s);
 PetscErrorCode StagesRegister();

@@ -9,6 +9,7 @@
 #include "signorini/assembly.h"
 #include "signorini/contact.h"
 #include "signorini/error.h"
+#include "signorini/estimate.h"
 #include "signorini/mesh.h"
 #include "signorini/strategy.h"
 
@@ -33,6 +34,7 @@ struct StudyRow {
   SolveResult solve;
   bool        hasExact = false, hasReference = false;
   ErrorNorms  exact, reference;
+  Estimate    estimate; // without the cell indicators
   double      solveSeconds = 0, totalSeconds = 0, peakRSS = 0; // peak resident memory (bytes, max over ranks)
 };
 
@@ -44,8 +46,8 @@ struct StudyRow {
 // 0 for files). The levels are refined at the first Next.
 class ConvergenceStudy : public MeshStrategy {
 public:
-  ConvergenceStudy(DM base, PetscInt N0, PetscReal h0, const Problem &problem, const AssemblyOptions &assembly, PetscInt errorDegree, const StudyOptions &o)
-    : base_(base), N0_(N0), h0_(h0), problem_(problem), assembly_(assembly), errorDegree_(errorDegree), o_(o) {}
+  ConvergenceStudy(DM base, PetscInt N0, PetscReal h0, const Problem &problem, const AssemblyOptions &assembly, const EstimateOptions &estimate, PetscInt errorDegree, const StudyOptions &o)
+    : base_(base), N0_(N0), h0_(h0), problem_(problem), assembly_(assembly), estimate_(estimate), errorDegree_(errorDegree), o_(o) {}
   PetscErrorCode Next(Step &step, bool &more) override;
   PetscErrorCode Solved(MeshSolution &&m) override;
   // After the loop: prints the table, writes the JSON if asked, and frees the solutions and the levels.
@@ -63,6 +65,7 @@ private:
   PetscReal                          h0_;
   const Problem                     &problem_;
   AssemblyOptions                    assembly_;
+  EstimateOptions                    estimate_; // every row's solution; not the reference's
   PetscInt                           errorDegree_;
   StudyOptions                       o_;
   std::vector<DM>                    levels_;

@@ -1,0 +1,291 @@
+// The estimate from a reconstruction (estimate.h): the flux, nonconformity, contact and oscillation terms
+// cell by cell, their global sums, the bound eta and the cell indicators.
+#include "signorini/estimate.h"
+#include "signorini/options.h"
+#include "signorini/stages.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace signorini {
+
+PetscErrorCode EstimateOptionsFromCommandLine(MPI_Comm comm, EstimateOptions &o)
+{
+  PetscInt which = o.enabled ? 0 : 1;
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(comm, "", "A posteriori error estimate", "signorini");
+  PetscCall(OptionEList(PetscOptionsObject, "-estimate", "Estimate of the energy error: equilibrated (flux and conforming companion, a guaranteed bound) or none", {"equilibrated", "none"}, which));
+  PetscOptionsEnd();
+  o.enabled = which == 0;
+  PetscFunctionReturn(0);
+}
+
+PetscReal SimplexDiameter(PetscInt dim, const PetscReal *X)
+{
+  PetscReal h2 = 0;
+  for (PetscInt i = 0; i <= dim; ++i)
+    for (PetscInt j = i + 1; j <= dim; ++j) {
+      PetscReal l2 = 0;
+      for (PetscInt d = 0; d < dim; ++d) l2 += (X[i * dim + d] - X[j * dim + d]) * (X[i * dim + d] - X[j * dim + d]);
+      h2 = std::max(h2, l2);
+    }
+  return std::sqrt(h2);
+}
+
+void ComputeCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, std::string &error)
+{
+  const PetscInt    dim  = space.dim;
+  const Quadrature &rule = sys.cellRule;
+  load.oscillation       = 0;
+  if (problem.f->IsConstant()) { // one value, no parser, no oscillation
+    const PetscReal f = problem.f->Scalar(g.centroid, dim, error);
+    for (PetscInt k = 0; k <= dim; ++k) load.moment[k] = f * g.volume / (dim + 1);
+    return;
+  }
+  problem.f->SetCellSet(space.CellSet(c));
+  work.resize(rule.Size());
+  PetscReal total = 0, x[3];
+  for (PetscInt k = 0; k <= dim; ++k) load.moment[k] = 0;
+  for (PetscInt q = 0; q < rule.Size(); ++q) {
+    const PetscReal *lambda = rule.Point(q);
+    SimplexPoint(dim, X, lambda, x);
+    work[q]            = problem.f->Scalar(x, dim, error);
+    const PetscReal fq = work[q] * rule.weights[q] * g.volume;
+    total += fq;
+    for (PetscInt k = 0; k <= dim; ++k) load.moment[k] += fq * lambda[k];
+  }
+  const PetscReal mean = total / g.volume;
+  PetscReal       dev2 = 0;
+  for (PetscInt q = 0; q < rule.Size(); ++q) dev2 += rule.weights[q] * (work[q] - mean) * (work[q] - mean);
+  // Poincare on a convex cell: ||w - w_T||_T <= h_T / pi ||grad w||_T.
+  load.oscillation = SimplexDiameter(dim, X) / M_PI * std::sqrt(dev2 * g.volume / sys.Kappa(c));
+}
+
+namespace {
+bool InParts(const std::vector<PetscInt> &parts, PetscInt part) { return std::find(parts.begin(), parts.end(), part) != parts.end(); }
+
+// The face of bf as dim vertex indices (v - vStart) and the cell's geometry.
+struct FaceOf {
+  PetscInt     vert[3];
+  CellGeometry g;
+  PetscReal    area, diameter;
+  FaceOf(const Space &space, const BoundaryFace &bf)
+  {
+    PetscInt n = 0;
+    for (PetscInt k = 0; k <= space.dim; ++k)
+      if (k != bf.opposite) vert[n++] = space.cellVert[bf.cell * space.Nb() + k];
+    const Space::Coords X = space.X(bf.cell);
+    ComputeCellGeometry(space.dim, X, g);
+    area     = space.FaceMeasure(bf);
+    diameter = SimplexDiameter(space.dim, X);
+  }
+};
+
+// Adds the Neumann oscillation of each face of Gamma_N to its cell's: for e in H^1 with mean e_F on F,
+// (g - Pi_0 g, e)_F = (g - Pi_0 g, e - e_F)_F and ||e - e_F||_F <= C_F ||grad e||_T with
+//   C_F^2 = |F| h_T^2 / |T| (1/pi^2 + 2/(pi d)),
+// from int_F w = |F|/(d|T|) int_T (d w + (x - a_F) . grad w) (a_F the vertex opposite F) with
+// w = (e - e_T)^2 and Poincare's h_T/pi. Pi_0 g is the mean by the assembly's face rule, the flux's.
+void AddNeumannOscillation(const Space &space, const Problem &problem, const System &sys, std::vector<PetscReal> &osc, std::string &error)
+{
+  if (!problem.HasNeumann() || problem.g->IsConstant()) return;
+  const PetscInt         dim  = space.dim;
+  const Quadrature      &rule = sys.faceRule;
+  std::vector<PetscReal> values(rule.Size());
+  PetscReal              lambda[4], x[3];
+  for (const BoundaryFace &bf : space.boundary) {
+    if (!InParts(problem.neumann, bf.part)) continue;
+    const FaceOf face(space, bf);
+    problem.g->SetCellSet(space.CellSet(bf.cell));
+    PetscReal mean = 0, dev2 = 0;
+    for (PetscInt q = 0; q < rule.Size(); ++q) {
+      space.FaceToCell(bf, rule.Point(q), lambda);
+      space.Point(bf.cell, lambda, x);
+      values[q] = problem.g->Scalar(x, dim, error);
+      mean += rule.weights[q] * values[q];
+    }
+    for (PetscInt q = 0; q < rule.Size(); ++q) dev2 += rule.weights[q] * (values[q] - mean) * (values[q] - mean);
+    const PetscReal C2 = face.area * face.diameter * face.diameter / face.g.volume * (1 / (M_PI * M_PI) + 2 / (M_PI * dim));
+    osc[bf.cell] += std::sqrt(C2 * dev2 * face.area / sys.Kappa(bf.cell));
+  }
+}
+
+// gamma = int_{Gamma_C} sigma.n (v - psi): sigma.n is Phi_F / |F| on face F (RT0) and v is affine there,
+// so each face gives Phi_F (mean of v at its vertices - mean of psi by the face rule). Returns the local
+// sum and adds each face's share, twice, to its cell's indicator (see EstimateFromReconstruction).
+PetscReal ContactTerm(const Space &space, const Problem &problem, const System &sys, const Reconstruction &r, const PetscScalar *a, std::vector<PetscReal> &cellEta2, std::string &error)
+{
+  if (!problem.HasContact()) return 0;
+  const PetscInt    dim  = space.dim, nb = space.Nb();
+  const Quadrature &rule = sys.faceRule;
+  PetscReal         sum = 0, lambda[4], x[3];
+  for (const BoundaryFace &bf : space.boundary) {
+    if (!InParts(problem.contact, bf.part)) continue;
+    PetscReal vmean = 0, psimean = 0;
+    for (PetscInt k = 0; k < nb; ++k) {
+      if (k == bf.opposite) continue;
+      const PetscInt v = space.cellVert[bf.cell * nb + k];
+      vmean += (r.companion.empty() ? PetscRealPart(a[space.Dofs(bf.cell)[k]]) : r.companion[v]) / dim;
+      if (problem.psi->IsConstant()) psimean = problem.psi->Scalar(&space.vertX[v * dim], dim, error);
+    }
+    if (!problem.psi->IsConstant())
+      for (PetscInt q = 0; q < rule.Size(); ++q) {
+        space.FaceToCell(bf, rule.Point(q), lambda);
+        space.Point(bf.cell, lambda, x);
+        psimean += rule.weights[q] * problem.psi->Scalar(x, dim, error);
+      }
+    const PetscReal gamma = r.flux[bf.cell * nb + bf.opposite] * (vmean - psimean);
+    sum += gamma;
+    cellEta2[bf.cell] += 2 * std::max(gamma, (PetscReal)0);
+  }
+  return sum;
+}
+
+// sigma = sum_k Phi_k (x - X_k) / (d |T|) = s0 + c (x - x_T) with s0 = sigma(x_T), c = sum_k Phi_k / (d |T|)
+// (= -Pi_0 f / d), so for the constant w = kappa grad v
+//   ||w - sigma||_T^2 = |T| |w - s0|^2 + c^2 int_T |x - x_T|^2,  int_T |x - x_T|^2 = |T| / ((d+1)(d+2)) sum_k |X_k - x_T|^2
+// exactly (the cross term vanishes: x - x_T has mean zero on T).
+PetscReal FluxTerm(PetscInt dim, const PetscReal *X, const CellGeometry &g, const PetscReal *phi, const PetscReal *w, PetscReal kappa)
+{
+  PetscReal s0[3] = {0, 0, 0}, c = 0, m2 = 0, d2 = 0;
+  for (PetscInt k = 0; k <= dim; ++k) {
+    c += phi[k];
+    for (PetscInt d = 0; d < dim; ++d) {
+      const PetscReal r = g.centroid[d] - X[k * dim + d];
+      s0[d] += phi[k] * r;
+      m2 += r * r;
+    }
+  }
+  const PetscReal scale = 1 / (dim * g.volume);
+  for (PetscInt d = 0; d < dim; ++d) d2 += (w[d] - scale * s0[d]) * (w[d] - scale * s0[d]);
+  c *= scale;
+  return (g.volume * d2 + c * c * g.volume / ((dim + 1) * (dim + 2)) * m2) / kappa;
+}
+
+// The f part of the oscillation per cell, for a reconstruction that did not evaluate f.
+PetscErrorCode CellOscillation(const Space &space, const Problem &problem, const System &sys, std::vector<PetscReal> &osc, std::string &error)
+{
+  std::vector<PetscReal> work;
+  PetscFunctionBeginUser;
+  osc.resize(space.NumCells());
+  for (PetscInt c = 0; c < space.NumCells(); ++c) {
+    const Space::Coords X = space.X(c);
+    CellGeometry        g;
+    CellLoad            load;
+    ComputeCellGeometry(space.dim, X, g);
+    ComputeCellLoad(space, problem, sys, c, X, g, work, load, error);
+    osc[c] = load.oscillation;
+  }
+  PetscFunctionReturn(0);
+}
+
+// The sums over the cells that the bounds need.
+enum Sum { kF2, kN2, kOsc2, kGamma, kFOsc2, kFhOsc2, kNumSums };
+
+// The cell terms F_T^2, N_T^2 and osc_T^2 into the indicators and the local sums: F^2, N^2, osc^2,
+// sum_T (F_T + osc_T)^2 and sum_T (Fh_T + osc_T)^2 with Fh_T = ||kappa^{-1/2}(kappa grad u_h - sigma)||_T.
+void CellTerms(const Space &space, const System &sys, const Reconstruction &r, const PetscScalar *a, std::vector<PetscReal> &cellEta2, PetscReal *sums)
+{
+  const PetscInt dim = space.dim, nb = space.Nb();
+  for (PetscInt c = 0; c < space.NumCells(); ++c) {
+    const Space::Coords X = space.X(c);
+    CellGeometry        g;
+    PetscReal           gu[3], gv[3] = {0, 0, 0}, w[3], wh[3], n2 = 0;
+    ComputeCellGeometry(dim, X, g);
+    space.Grad(c, a, g, gu);
+    const PetscReal kappa = sys.Kappa(c);
+    for (PetscInt k = 0; k < nb; ++k) {
+      const PetscReal vk = r.companion.empty() ? PetscRealPart(a[space.Dofs(c)[k]]) : r.companion[space.cellVert[c * nb + k]];
+      for (PetscInt d = 0; d < dim; ++d) gv[d] += vk * g.gradLambda[k][d];
+    }
+    for (PetscInt d = 0; d < dim; ++d) {
+      w[d]  = kappa * gv[d];
+      wh[d] = kappa * gu[d];
+      n2 += (gu[d] - gv[d]) * (gu[d] - gv[d]);
+    }
+    n2 *= kappa * g.volume;
+    const PetscReal f2 = FluxTerm(dim, X, g, &r.flux[c * nb], w, kappa), o2 = r.oscillation[c] * r.oscillation[c];
+    cellEta2[c] += f2 + n2 + o2;
+    const PetscReal fo = std::sqrt(f2) + r.oscillation[c], fho = std::sqrt(FluxTerm(dim, X, g, &r.flux[c * nb], wh, kappa)) + r.oscillation[c];
+    sums[kF2] += f2, sums[kN2] += n2, sums[kOsc2] += o2, sums[kFOsc2] += fo * fo, sums[kFhOsc2] += fho * fho;
+  }
+}
+
+// The smaller of two guaranteed bounds of |||u - u_h|||, both from the variational inequality tested with
+// v (see estimate.h for the assumptions), N = |||u_h - v|||, gamma the contact term:
+//  1. estimate.h's: E = |||u - v||| <= (b + sqrt(b^2 + 4 gamma)) / 2 with b = F + osc, and |||u - u_h||| <= N + E.
+//  2. With e = u - u_h: |||e|||^2 = (kappa grad_h e, grad(u - v)) + (kappa grad_h e, grad_h(v - u_h)); the second
+//     term is <= |||e||| N, and the first, as in 1. but with kappa grad_h u_h in place of kappa grad v, is
+//     <= bh |||u - v||| + gamma <= bh (|||e||| + N) + gamma with bh = Fh + osc. So |||e|||^2 <= a |||e||| + c,
+//     a = N + bh, c = bh N + gamma: |||e||| <= (a + sqrt(a^2 + 4 c)) / 2. sigma is close to kappa grad_h u_h
+//     (for CR it differs by the load term only), so bh is of the size of osc, and 2. is about N + 2 bh where
+//     1. is about 2 N (F and N both measure how far v is from u_h). For P1 (N = 0) both are the same.
+// b and bh combine flux and oscillation cell by cell (sum_T (F_T + osc_T) |||w|||_T <= b |||w|||), which is
+// at most F + osc. gamma < 0 only where psi is not affine on a face (v >= psi at the vertices only): the
+// bound then holds up to that data approximation, and gamma counts as 0.
+PetscReal Bound(PetscReal N, PetscReal b, PetscReal bh, PetscReal contact)
+{
+  const PetscReal gamma = std::max(contact, (PetscReal)0), a = N + bh, c = bh * N + gamma;
+  return std::min(N + (b + std::sqrt(b * b + 4 * gamma)) / 2, (a + std::sqrt(a * a + 4 * c)) / 2);
+}
+
+// From the quadratic inequality E^2 <= b E + gamma (estimate.h), E^2 <= b^2 + 2 gamma, so the cell
+// indicators carry their contact faces' shares of gamma twice: then eta^2 <= 2 N^2 + 2 E^2
+// <= 2 N^2 + 4 (F^2 + osc^2) + 4 gamma <= 4 sum_T eta_T^2, i.e. the indicators' root sum is at least eta/2
+// and their sizes weigh the contact gap as the bound does for small gamma.
+PetscErrorCode EstimateFromReconstruction(const Space &space, const Problem &problem, const System &sys, Vec u, Reconstruction &r, Estimate &e)
+{
+  MPI_Comm           comm = PetscObjectComm((PetscObject)space.dm);
+  Vec                loc;
+  const PetscScalar *a;
+  std::string        error;
+  PetscReal          sums[kNumSums] = {0};
+  PetscFunctionBeginUser;
+  e.cellEta2.assign(space.NumCells(), 0.0);
+  PetscCall(DMGetLocalVector(space.dm, &loc));
+  PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, loc));
+  PetscCall(VecGetArrayRead(loc, &a));
+  if (r.oscillation.empty()) PetscCall(CellOscillation(space, problem, sys, r.oscillation, error));
+  AddNeumannOscillation(space, problem, sys, r.oscillation, error);
+  sums[kGamma] = ContactTerm(space, problem, sys, r, a, e.cellEta2, error);
+  CellTerms(space, sys, r, a, e.cellEta2, sums);
+  PetscCall(VecRestoreArrayRead(loc, &a));
+  PetscCall(DMRestoreLocalVector(space.dm, &loc));
+  PetscCall(CheckAll(comm, error.empty(), error));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, sums, kNumSums, MPIU_REAL, MPI_SUM, comm));
+  e.flux          = std::sqrt(sums[kF2]);
+  e.nonconformity = std::sqrt(sums[kN2]);
+  e.oscillation   = std::sqrt(sums[kOsc2]);
+  e.contact       = sums[kGamma];
+  e.eta           = Bound(e.nonconformity, std::sqrt(sums[kFOsc2]), std::sqrt(sums[kFhOsc2]), e.contact);
+  PetscFunctionReturn(0);
+}
+} // namespace
+
+PetscErrorCode EstimateError(const Space &space, const Problem &problem, const System &sys, Vec u, Estimate &e)
+{
+  PetscLogDouble t0;
+  Reconstruction r;
+  PetscFunctionBeginUser;
+  e = Estimate();
+  // ReconstructP1 (equilibrate.cpp) is a separate component, wired in when it is merged: this line goes
+  // and the dispatch below calls it. Until then a P1 run has no estimate (computed = false).
+  if (space.element == Element::P1) PetscFunctionReturn(0);
+  static PetscLogEvent events[2] = {0, 0}; // -log_view lists them under the Estimate stage
+  if (!events[0]) PetscCall(PetscLogEventRegister("Reconstruct", DM_CLASSID, &events[0]));
+  if (!events[1]) PetscCall(PetscLogEventRegister("EstimateCells", DM_CLASSID, &events[1]));
+  PetscCall(PetscTime(&t0));
+  PetscCall(StagePush(Stage::Estimate));
+  PetscCall(PetscLogEventBegin(events[0], 0, 0, 0, 0));
+  PetscCall(ReconstructCR(space, problem, sys, u, r)); // P1: ReconstructP1(space, problem, sys, u, r)
+  PetscCall(PetscLogEventEnd(events[0], 0, 0, 0, 0));
+  PetscCall(PetscLogEventBegin(events[1], 0, 0, 0, 0));
+  PetscCall(EstimateFromReconstruction(space, problem, sys, u, r, e));
+  PetscCall(PetscLogEventEnd(events[1], 0, 0, 0, 0));
+  PetscCall(StagePop(Stage::Estimate));
+  PetscCall(SecondsSince(PetscObjectComm((PetscObject)space.dm), t0, &e.seconds));
+  e.computed = true;
+  PetscFunctionReturn(0);
+}
+
+} // namespace signorini

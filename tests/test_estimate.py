@@ -1,0 +1,118 @@
+"""The a posteriori estimate eta of the energy error (estimate.h), CR element:
+- zero to round-off where u lies in the discrete space (linear u, comparison with the exact solution): the
+  flux, nonconformity, oscillation and contact terms vanish; without a contact part eta does too, and with
+  an inactive contact part eta is at most the square root of the contact term's round-off (the bound has
+  sqrt(gamma));
+- a guaranteed upper bound, eta >= the true energy error, with efficiency index eta / error <= 3 on the
+  manufactured scenes (comparison with the exact solution) at three mesh sizes each, and across a kappa
+  jump of 1e6 (stiff-layers-across). Their u_D (2D top,
+  3D top) and g are not affine on the boundary faces, so the theory guarantees the bound only up to that
+  data approximation: the test checks it holds all the same;
+- the same estimate on 1 and 2 ranks (1e-10 relative; independent computations);
+- -estimate none: nothing printed, no "estimate" in the JSON summary, no time in the Estimate stage;
+- the cell indicators in -output (cell field "eta", one value per cell) satisfy sum_T eta_T^2 =
+  F^2 + N^2 + osc^2 + 2 gamma (an invariant of their definition, gamma >= 0 face by face here) and
+  eta <= 2 (sum_T eta_T^2)^{1/2};
+- the convergence study's JSON rows carry the estimate and its efficiency index."""
+import math
+import os
+import tempfile
+
+from harness import Checker, run, scene
+
+c = Checker()
+tight = ["-ksp_rtol", "1e-13", "-snes_rtol", "1e-13"]
+
+
+def rel(a, b):
+    return abs(a - b) / max(abs(a), abs(b), 1e-300)
+
+
+# 1. Linear u (see test_exact_linear.py for the scenes): |||u||| is |grad u| on the unit square / cube.
+linear = [
+    ("2D no contact", ["-dim", "2", "-box_faces", "4", "-bc_dirichlet", "1,2,3,4", "-u_D", "1 + 2*x - 3*y",
+                       "-exact_u", "1 + 2*x - 3*y", "-exact_grad", "2, -3"], math.sqrt(13), False),
+    ("3D no contact", ["-dim", "3", "-box_faces", "2", "-bc_dirichlet", "1,2,3,4,5,6", "-u_D", "1 + 2*x - 3*y + z",
+                       "-exact_u", "1 + 2*x - 3*y + z", "-exact_grad", "2, -3, 1"], math.sqrt(14), False),
+    ("2D inactive contact", ["-dim", "2", "-box_faces", "5,3", "-bc_dirichlet", "3", "-bc_neumann", "2,4", "-bc_contact", "1",
+                             "-f", "0", "-u_D", "1 + 2*x", "-g", "x < 0.5 ? -2 : 2", "-psi", "2*x",
+                             "-exact_u", "1 + 2*x", "-exact_grad", "2, 0"], 2.0, True),
+    ("3D inactive contact", ["-dim", "3", "-box_faces", "2,3,2", "-bc_dirichlet", "2", "-bc_neumann", "3,4,5,6", "-bc_contact", "1",
+                             "-f", "0", "-u_D", "1 + 2*x - 3*y", "-g", "x < 1e-9 ? -2 : (x > 1 - 1e-9 ? 2 : (y < 1e-9 ? 3 : -3))",
+                             "-psi", "2*x - 3*y - 1", "-exact_u", "1 + 2*x - 3*y", "-exact_grad", "2, -3, 0"], math.sqrt(13), True),
+]
+for name, args, norm, contact in linear:
+    _, _, _, s = run(args + ["-space", "cr"] + tight)
+    e = s["estimate"]
+    parts = max(e["flux"], e["nonconformity"], e["oscillation"])
+    c.check(parts <= 1e-10 * norm and abs(e["contact"]) <= 1e-10 * norm ** 2,
+            "%s: flux %.1e, nonconformity %.1e, oscillation %.1e, contact %.1e vanish" % (name, e["flux"], e["nonconformity"], e["oscillation"], e["contact"]))
+    limit = 1e-6 if contact else 1e-10
+    c.check(e["eta"] <= limit * norm, "%s: eta %.2e <= %.0e |||u|||" % (name, e["eta"], limit))
+
+# 2. Reliability and efficiency on the manufactured scenes.
+sizes = [("manufactured-2d", ["-refine", str(r)]) for r in [0, 1, 2]]
+sizes += [("manufactured-3d", ["-box_faces", str(n)]) for n in [6, 8, 12]]
+# A kappa jump of 1e6 across Gamma_C (the companion's kappa-weighted vertex average keeps the index near 2).
+sizes += [("stiff-layers-across", ["-refine", str(r)]) for r in [0, 1]]
+for name, extra in sizes:
+    _, _, _, s = run(scene(name) + ["-space", "cr"] + extra)
+    eta, err = s["estimate"]["eta"], s["error"]["energy"]
+    c.check(eta >= err, "%s %s: eta %.4e >= energy error %.4e" % (name, " ".join(extra), eta, err))
+    c.check(eta / err <= 3 and abs(s["estimate"]["efficiency"] - eta / err) <= 1e-12 * eta / err,
+            "%s %s: efficiency index %.3f <= 3" % (name, " ".join(extra), eta / err))
+
+# 3. The same estimate on 1 and 2 ranks.
+for name, extra in [("manufactured-2d", ["-refine", "1"]), ("manufactured-3d", ["-box_faces", "2", "-refine", "2"])]:
+    args = scene(name) + ["-space", "cr"] + extra + tight
+    _, _, _, s1 = run(args)
+    _, _, _, s2 = run(args, ranks=2)
+    e1, e2 = s1["estimate"], s2["estimate"]
+    same = all(rel(e1[k], e2[k]) <= 1e-10 for k in ["eta", "flux", "nonconformity", "oscillation"])
+    same = same and abs(e1["contact"] - e2["contact"]) <= 1e-10 * e1["eta"] ** 2
+    c.check(s2["ranks"] == 2 and same, "%s: eta %.15e on 1 rank, %.15e on 2" % (name, e1["eta"], e2["eta"]))
+
+# 4. -estimate none.
+_, out, _, s = run(scene("manufactured-2d") + ["-space", "cr", "-estimate", "none"])
+c.check("estimate of the energy error" not in out and "efficiency" not in out, "-estimate none: no estimate printed")
+c.check("estimate" not in s and s["time"]["estimate"] == 0, "-estimate none: no estimate in the JSON, Estimate stage time %g" % s["time"]["estimate"])
+_, out, _, s = run(scene("manufactured-2d") + ["-space", "cr"])
+c.check("estimate of the energy error" in out and "efficiency index" in out and s["time"]["estimate"] > 0, "by default the estimate is printed with its efficiency index")
+
+# 5. The cell indicators in the output.
+try:
+    import h5py
+except ImportError:
+    h5py = None
+c.check(h5py is not None, "h5py can be imported (run/setup installs python3-h5py)")
+if h5py:
+    for name, extra, ranks in [("manufactured-2d", ["-refine", "1"], 2), ("manufactured-3d", [], 1)]:
+        with tempfile.TemporaryDirectory() as tmp:
+            h5 = os.path.join(tmp, "sol.h5")
+            _, _, _, s = run(scene(name) + ["-space", "cr", "-output", h5] + extra, ranks=ranks)
+            with h5py.File(h5, "r") as f:
+                eta = f["/cell_fields/eta"][()].ravel() if "/cell_fields/eta" in f else []
+            with open(os.path.join(tmp, "sol.xmf")) as f:
+                xmf = f.read()
+        e = s["estimate"]
+        c.check(len(eta) == s["cells"] and 'Name="eta"' in xmf, "%s: cell field eta with %d values for %d cells, in the XDMF file" % (name, len(eta), s["cells"]))
+        total = sum(v * v for v in eta)
+        parts = e["flux"] ** 2 + e["nonconformity"] ** 2 + e["oscillation"] ** 2 + 2 * e["contact"]
+        c.check(min(eta) >= 0 and rel(total, parts) <= 1e-10 and e["eta"] <= 2 * math.sqrt(total),
+                "%s: sum of eta_T^2 %.10e = F^2 + N^2 + osc^2 + 2 gamma %.10e, eta %.4e <= 2 x %.4e" % (name, total, parts, e["eta"], math.sqrt(total)))
+    with tempfile.TemporaryDirectory() as tmp:
+        h5 = os.path.join(tmp, "sol.h5")
+        run(scene("manufactured-2d") + ["-space", "cr", "-output", h5, "-estimate", "none"])
+        with h5py.File(h5, "r") as f:
+            c.check("/cell_fields/eta" not in f, "-estimate none: no eta field in the output")
+
+# 6. The study rows.
+with tempfile.TemporaryDirectory() as tmp:
+    import json
+    path = os.path.join(tmp, "study.json")
+    run(scene("manufactured-2d") + ["-study_levels", "2", "-study_spaces", "cr", "-study_output", path])
+    with open(path) as f:
+        rows = json.load(f)["rows"]
+    ok = all("estimate" in r and r["estimate"]["eta"] >= r["error_exact"]["energy"] and 1 <= r["estimate"]["efficiency"] <= 3 for r in rows)
+    c.check(len(rows) == 2 and ok, "study rows carry eta >= energy error and the efficiency index: %s" % [round(r["estimate"]["efficiency"], 3) for r in rows])
+c.done()
