@@ -268,16 +268,14 @@ PetscErrorCode EstimateError(const Space &space, const Problem &problem, const S
   Reconstruction r;
   PetscFunctionBeginUser;
   e = Estimate();
-  // ReconstructP1 (equilibrate.cpp) is a separate component, wired in when it is merged: this line goes
-  // and the dispatch below calls it. Until then a P1 run has no estimate (computed = false).
-  if (space.element == Element::P1) PetscFunctionReturn(0);
   static PetscLogEvent events[2] = {0, 0}; // -log_view lists them under the Estimate stage
   if (!events[0]) PetscCall(PetscLogEventRegister("Reconstruct", DM_CLASSID, &events[0]));
   if (!events[1]) PetscCall(PetscLogEventRegister("EstimateCells", DM_CLASSID, &events[1]));
   PetscCall(PetscTime(&t0));
   PetscCall(StagePush(Stage::Estimate));
   PetscCall(PetscLogEventBegin(events[0], 0, 0, 0, 0));
-  PetscCall(ReconstructCR(space, problem, sys, u, r)); // P1: ReconstructP1(space, problem, sys, u, r)
+  if (space.element == Element::CR) PetscCall(ReconstructCR(space, problem, sys, u, r));
+  else PetscCall(ReconstructP1(space, problem, sys, u, r));
   PetscCall(PetscLogEventEnd(events[0], 0, 0, 0, 0));
   PetscCall(PetscLogEventBegin(events[1], 0, 0, 0, 0));
   PetscCall(EstimateFromReconstruction(space, problem, sys, u, r, e));

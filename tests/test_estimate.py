@@ -1,4 +1,5 @@
-"""The a posteriori estimate eta of the energy error (estimate.h), CR element:
+"""The a posteriori estimate eta of the energy error (estimate.h), for both elements (CR: Marini flux and
+vertex-average companion; P1: flux equilibrated on vertex patches, v = u_h):
 - zero to round-off where u lies in the discrete space (linear u, comparison with the exact solution): the
   flux, nonconformity, oscillation and contact terms vanish; without a contact part eta does too, and with
   an inactive contact part eta is at most the square root of the contact term's round-off (the bound has
@@ -41,8 +42,9 @@ linear = [
                              "-f", "0", "-u_D", "1 + 2*x - 3*y", "-g", "x < 1e-9 ? -2 : (x > 1 - 1e-9 ? 2 : (y < 1e-9 ? 3 : -3))",
                              "-psi", "2*x - 3*y - 1", "-exact_u", "1 + 2*x - 3*y", "-exact_grad", "2, -3, 0"], math.sqrt(13), True),
 ]
-for name, args, norm, contact in linear:
-    _, _, _, s = run(args + ["-space", "cr"] + tight)
+for (name, args, norm, contact), el in [(case, el) for case in linear for el in ["cr", "p1"]]:
+    name = "%s %s" % (el, name)
+    _, _, _, s = run(args + ["-space", el] + tight)
     e = s["estimate"]
     parts = max(e["flux"], e["nonconformity"], e["oscillation"])
     c.check(parts <= 1e-10 * norm and abs(e["contact"]) <= 1e-10 * norm ** 2,
@@ -55,22 +57,23 @@ sizes = [("manufactured-2d", ["-refine", str(r)]) for r in [0, 1, 2]]
 sizes += [("manufactured-3d", ["-box_faces", str(n)]) for n in [6, 8, 12]]
 # A kappa jump of 1e6 across Gamma_C (the companion's kappa-weighted vertex average keeps the index near 2).
 sizes += [("stiff-layers-across", ["-refine", str(r)]) for r in [0, 1]]
-for name, extra in sizes:
-    _, _, _, s = run(scene(name) + ["-space", "cr"] + extra)
+for (name, extra), el in [(case, el) for case in sizes for el in ["cr", "p1"]]:
+    _, _, _, s = run(scene(name) + ["-space", el] + extra)
+    extra = [el] + extra
     eta, err = s["estimate"]["eta"], s["error"]["energy"]
     c.check(eta >= err, "%s %s: eta %.4e >= energy error %.4e" % (name, " ".join(extra), eta, err))
     c.check(eta / err <= 3 and abs(s["estimate"]["efficiency"] - eta / err) <= 1e-12 * eta / err,
             "%s %s: efficiency index %.3f <= 3" % (name, " ".join(extra), eta / err))
 
 # 3. The same estimate on 1 and 2 ranks.
-for name, extra in [("manufactured-2d", ["-refine", "1"]), ("manufactured-3d", ["-box_faces", "2", "-refine", "2"])]:
-    args = scene(name) + ["-space", "cr"] + extra + tight
+for name, extra in [(n, ["-space", el] + x) for n, x in [("manufactured-2d", ["-refine", "1"]), ("manufactured-3d", ["-box_faces", "2", "-refine", "2"])] for el in ["cr", "p1"]]:
+    args = scene(name) + extra + tight
     _, _, _, s1 = run(args)
     _, _, _, s2 = run(args, ranks=2)
     e1, e2 = s1["estimate"], s2["estimate"]
     same = all(rel(e1[k], e2[k]) <= 1e-10 for k in ["eta", "flux", "nonconformity", "oscillation"])
     same = same and abs(e1["contact"] - e2["contact"]) <= 1e-10 * e1["eta"] ** 2
-    c.check(s2["ranks"] == 2 and same, "%s: eta %.15e on 1 rank, %.15e on 2" % (name, e1["eta"], e2["eta"]))
+    c.check(s2["ranks"] == 2 and same, "%s %s: eta %.15e on 1 rank, %.15e on 2" % (name, extra[1], e1["eta"], e2["eta"]))
 
 # 4. -estimate none.
 _, out, _, s = run(scene("manufactured-2d") + ["-space", "cr", "-estimate", "none"])
