@@ -1,6 +1,36 @@
 #include "signorini/localrefine.h"
 
+#include <petsc/private/dmplextransformimpl.h> // DMPlexTransform::trType, see GeneralStrata
+
 namespace signorini {
+
+// PETSc 3.18's DMLabel keeps a stratum of contiguous points as a stride index set, whose ISGetIndices
+// allocates and fills the whole array on every call, and DMPlexTransformGetTargetPoint looks up the
+// point's position in the stratum of its refinement type for every point it makes: with a label of
+// refinement types (SBR) a contiguous stratum (all vertices, typically) makes DMPlexTransformApply
+// quadratic in the mesh size (4 s for 10^5 cells, most of it in ISGetIndices_Stride). Made general
+// index sets once, in place, the strata cost a binary search per look-up. 3.18 has no accessor for the
+// transform's label, hence the private header.
+static PetscErrorCode GeneralStrata(DMLabel label)
+{
+  IS              values;
+  const PetscInt *v;
+  PetscInt        n;
+  PetscFunctionBeginUser;
+  if (!label) PetscFunctionReturn(0);
+  PetscCall(DMLabelGetValueIS(label, &values));
+  PetscCall(ISGetLocalSize(values, &n));
+  PetscCall(ISGetIndices(values, &v));
+  for (PetscInt i = 0; i < n; ++i) {
+    IS stratum; // the label's own index set (one more reference)
+    PetscCall(DMLabelGetStratumIS(label, v[i], &stratum));
+    if (stratum) PetscCall(ISToGeneral(stratum));
+    PetscCall(ISDestroy(&stratum));
+  }
+  PetscCall(ISRestoreIndices(values, &v));
+  PetscCall(ISDestroy(&values));
+  PetscFunctionReturn(0);
+}
 
 PetscErrorCode TransformRefine(DM coarse, DMPlexTransformType type, DMLabel active, DM *fine, std::vector<PetscInt> *parent)
 {
@@ -13,6 +43,7 @@ PetscErrorCode TransformRefine(DM coarse, DMPlexTransformType type, DMLabel acti
   PetscCall(DMPlexTransformSetType(tr, type));
   if (active) PetscCall(DMPlexTransformSetActive(tr, active));
   PetscCall(DMPlexTransformSetUp(tr));
+  PetscCall(GeneralStrata(tr->trType));
   PetscCall(DMPlexTransformApply(tr, coarse, fine));
   if (parent) {
     // From each coarse cell to the children its refinement type makes. (3.18's DMPlexTransformGetSourcePoint,
