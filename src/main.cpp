@@ -7,6 +7,7 @@ static const char help[] =
   "  mpirun -n 2 signorini -options_file petsc-options/manufactured-2d -space p1 -refine 2 -summary run.json\n"
   "  signorini -options_file petsc-options/manufactured-3d -snes_monitor -ksp_converged_reason -log_view\n\n";
 
+#include "signorini/adapt.h"
 #include "signorini/assembly.h"
 #include "signorini/contact.h"
 #include "signorini/error.h"
@@ -42,6 +43,7 @@ struct Settings {
   SolveOptions    solve;
   NestedOptions   nested;
   EstimateOptions estimate;
+  AdaptOptions    adapt;
 };
 
 // Under -help every component lists its options whatever else is on the command line: an error of one
@@ -60,32 +62,12 @@ static PetscErrorCode ReadSettings(MPI_Comm comm, Settings &s, bool help)
     [&] { return SolveOptionsFromCommandLine(comm, s.solve); },
     [&] { return NestedOptionsFromCommandLine(comm, s.nested); },
     [&] { return EstimateOptionsFromCommandLine(comm, s.estimate); },
+    [&] { return AdaptOptionsFromCommandLine(comm, s.adapt); },
   };
   PetscFunctionBeginUser;
   for (const auto &read : readers) {
     const PetscErrorCode ierr = read();
     if (!help) PetscCall(OptionsAsInputError(comm, ierr));
-  }
-  PetscFunctionReturn(0);
-}
-
-// The scene on every mesh the strategy hands out, each through the pipeline, with what the strategy
-// carries from one mesh to the next.
-static PetscErrorCode SolveMeshes(const Problem &problem, MeshStrategy &strategy)
-{
-  Step step;
-  bool more;
-  PetscFunctionBeginUser;
-  PetscCall(strategy.Next(step, more));
-  while (more) {
-    MeshSolution m;
-    bool         carried;
-    PetscCall(PipelineSetUp(step.mesh, problem, step.options, m));
-    PetscCall(strategy.Carry(m, carried));
-    if (carried) step.options.solve.initialGuess = true;
-    PetscCall(PipelineSolve(problem, step.options, m));
-    PetscCall(strategy.Solved(std::move(m)));
-    PetscCall(strategy.Next(step, more));
   }
   PetscFunctionReturn(0);
 }
@@ -111,8 +93,10 @@ static PetscErrorCode Run(MPI_Comm comm)
   PetscCall(CheckUnknownOptions(comm)); // a mistyped option fails now, not after the run
 
   // mesh -> space -> assembly -> solve -> errors -> report -> output
+  const bool adaptive = s.adapt.steps > 0;
+  if (adaptive && s.study.levels > 0) SIGNORINI_INPUT_ERROR(comm, "options -adapt_steps and -study_levels: a run refines adaptively or makes a convergence study, not both");
   // Nested iteration needs the coarser levels of the refinement; a scene without contact is one linear solve.
-  const bool nested = s.nested.enabled && s.mesh.refine > 0 && s.nested.levels != 0 && s.study.levels == 0 && !s.problem.contact.empty();
+  const bool nested = s.nested.enabled && s.mesh.refine > 0 && s.nested.levels != 0 && s.study.levels == 0 && !adaptive && !s.problem.contact.empty();
   MeshLevels levels;
   // The scene is checked against the coarse mesh (dimension, boundary parts) before the refinement.
   // The sizes are checked against the coarse mesh before it is built (box) or distributed (file).
@@ -146,9 +130,22 @@ static PetscErrorCode Run(MPI_Comm comm)
     if (nested) PetscCall(DMDestroy(&levels.dm.back()));
     PetscFunctionReturn(0);
   };
-  // One mesh, or the refinement levels coarse to fine with each solution carried to the next.
+  // One mesh, the refinement levels coarse to fine, or adaptively refined meshes, with each solution
+  // carried to the next.
   MeshSolution fine;
-  if (nested) {
+  if (adaptive) {
+    PipelineOptions ao = po;
+    ao.withMesh        = nullptr; // the output is begun on the last mesh, known once solved
+    ao.keepMesh        = !s.output.file.empty();
+    AdaptiveRefinement strategy(mesh, s.problem, ao, s.adapt, s.errorDegree);
+    PetscCall(DMDestroy(&mesh)); // the strategy holds the mesh as long as it needs it
+    PetscCall(SolveMeshes(s.problem, strategy));
+    fine = std::move(strategy.finest);
+    report.adapt          = strategy.rows;
+    meshInfo.cells        = strategy.rows.back().cells;
+    meshInfo.cellsPerRank = strategy.cellsPerRank;
+    if (!s.output.file.empty()) PetscCall(OutputBegin(fine.space, s.output, output));
+  } else if (nested) {
     NestedIteration strategy(levels, s.problem, po);
     PetscCall(SolveMeshes(s.problem, strategy));
     fine = std::move(strategy.finest);

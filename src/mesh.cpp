@@ -1,12 +1,12 @@
 #include "signorini/mesh.h"
 #include "signorini/gmsh.h"
+#include "signorini/localrefine.h"
 #include "signorini/options.h"
 #include "signorini/refine.h"
 #include "signorini/sizes.h"
 #include "signorini/stages.h"
 
 #include <metis.h>
-#include <petscdmplextransform.h>
 
 #include <algorithm>
 #include <cmath>
@@ -496,38 +496,11 @@ PetscErrorCode LabelFaces(DM dm, DMLabel label, PetscInt value, std::vector<Pets
   PetscFunctionReturn(0);
 }
 
-// PETSc's regular refinement. The transform is kept until the parent map is read: it knows the source
-// point of every new point.
-static PetscErrorCode RefineWithTransform(DM coarse, DM *fine, std::vector<PetscInt> *parent)
-{
-  DMPlexTransform tr;
-  PetscFunctionBeginUser;
-  PetscCall(DMPlexTransformCreate(PetscObjectComm((PetscObject)coarse), &tr));
-  PetscCall(DMPlexTransformSetDM(tr, coarse));
-  PetscCall(DMPlexTransformSetType(tr, DMPLEXREFINEREGULAR));
-  PetscCall(DMPlexTransformSetUp(tr));
-  PetscCall(DMPlexTransformApply(tr, coarse, fine));
-  if (parent) {
-    PetscInt fStart, fEnd, cStart;
-    PetscCall(DMPlexGetHeightStratum(coarse, 0, &cStart, NULL));
-    PetscCall(DMPlexGetHeightStratum(*fine, 0, &fStart, &fEnd));
-    parent->resize(fEnd - fStart);
-    for (PetscInt c = fStart; c < fEnd; ++c) {
-      DMPolytopeType ct, rct;
-      PetscInt       source, replica;
-      PetscCall(DMPlexTransformGetSourcePoint(tr, c, &ct, &rct, &source, &replica));
-      (*parent)[c - fStart] = source - cStart;
-    }
-  }
-  PetscCall(DMPlexTransformDestroy(&tr));
-  PetscFunctionReturn(0);
-}
-
 PetscErrorCode MeshRefine(DM coarse, DM *fine, std::vector<PetscInt> *parent, Refinement how)
 {
   PetscFunctionBeginUser;
   if (how == Refinement::Direct) PetscCall(RefineSimplices(coarse, fine, parent));
-  else PetscCall(RefineWithTransform(coarse, fine, parent));
+  else PetscCall(TransformRefine(coarse, DMPLEXREFINEREGULAR, nullptr, fine, parent)); // PETSc's regular refinement
   PetscCall(DMPlexSetRegularRefinement(*fine, PETSC_TRUE));
   PetscCall(PetscObjectSetName((PetscObject)*fine, "mesh"));
   PetscFunctionReturn(0);

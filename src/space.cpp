@@ -68,7 +68,7 @@ void Space::Point(PetscInt c, const PetscReal *lambda, PetscReal *x) const { Sim
 void Space::DofPoint(PetscInt c, PetscInt i, PetscReal *x) const
 {
   PetscReal lambda[4];
-  for (PetscInt k = 0; k <= dim; ++k) lambda[k] = element == Element::P1 ? (k == i) : (k == i ? 0.0 : 1.0 / dim);
+  DofLambda(element, dim, i, lambda);
   Point(c, lambda, x);
 }
 

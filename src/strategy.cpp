@@ -25,4 +25,23 @@ PetscErrorCode SingleRun::Solved(MeshSolution &&m)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode SolveMeshes(const Problem &problem, MeshStrategy &strategy)
+{
+  Step step;
+  bool more;
+  PetscFunctionBeginUser;
+  PetscCall(strategy.Next(step, more));
+  while (more) {
+    MeshSolution m;
+    bool         carried;
+    PetscCall(PipelineSetUp(step.mesh, problem, step.options, m));
+    PetscCall(strategy.Carry(m, carried));
+    if (carried) step.options.solve.initialGuess = true;
+    PetscCall(PipelineSolve(problem, step.options, m));
+    PetscCall(strategy.Solved(std::move(m)));
+    PetscCall(strategy.Next(step, more));
+  }
+  PetscFunctionReturn(0);
+}
+
 } // namespace signorini

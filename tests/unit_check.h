@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
+#include <algorithm>
 #include <array>
 #include <string>
 #include <vector>
@@ -106,6 +107,47 @@ inline PetscErrorCode PointVertices(DM dm, PetscInt p, std::vector<std::array<do
   }
   PetscCall(DMPlexRestoreTransitiveClosure(dm, p, PETSC_TRUE, &n, &closure));
   PetscCall(VecRestoreArrayRead(coords, &xa));
+  PetscFunctionReturn(0);
+}
+
+// Largest negative barycentric coordinate of a fine cell's centroid in its parent (0 when inside).
+inline PetscErrorCode ParentOutside(DM coarse, DM fine, const std::vector<PetscInt> &parent, double *outside)
+{
+  PetscInt cS, cE, ccS;
+  PetscFunctionBeginUser;
+  *outside = 0;
+  PetscCall(DMPlexGetHeightStratum(fine, 0, &cS, &cE));
+  PetscCall(DMPlexGetHeightStratum(coarse, 0, &ccS, NULL));
+  for (PetscInt c = cS; c < cE; ++c) {
+    PetscReal vol, x[3], v0[3], J[9], invJ[9], detJ;
+    PetscInt  dim;
+    PetscCall(DMGetDimension(fine, &dim));
+    PetscCall(DMPlexComputeCellGeometryFVM(fine, c, &vol, x, NULL));
+    PetscCall(DMPlexComputeCellGeometryAffineFEM(coarse, ccS + parent[c - cS], v0, J, invJ, &detJ));
+    // reference coordinates xi = invJ (x - v0) - 1 on PETSc's reference simplex in [-1, 1]^dim
+    PetscReal xi[3] = {0, 0, 0}, lambda0 = 1;
+    for (PetscInt i = 0; i < dim; ++i) {
+      for (PetscInt j = 0; j < dim; ++j) xi[i] += invJ[i * dim + j] * (x[j] - v0[j]);
+      xi[i] -= 1.0;
+      *outside = std::max(*outside, -(double)(xi[i] + 1) / 2);
+      lambda0 -= (xi[i] + 1) / 2;
+    }
+    *outside = std::max(*outside, -(double)lambda0);
+  }
+  PetscFunctionReturn(0);
+}
+
+// PETSc's consistency checks of a mesh (symmetry, skeleton, faces, geometry with positive Jacobians, point
+// star forest, interface cones): each raises an error when it fails.
+inline PetscErrorCode CheckPlex(DM dm)
+{
+  PetscFunctionBeginUser;
+  PetscCall(DMPlexCheckSymmetry(dm));
+  PetscCall(DMPlexCheckSkeleton(dm, 0));
+  PetscCall(DMPlexCheckFaces(dm, 0));
+  PetscCall(DMPlexCheckGeometry(dm));
+  PetscCall(DMPlexCheckPointSF(dm, NULL, PETSC_FALSE));
+  PetscCall(DMPlexCheckInterfaceCones(dm));
   PetscFunctionReturn(0);
 }
 

@@ -1,5 +1,7 @@
-// Unit tests of the prolongation between nested meshes (nested.h), P1 and CR, 2D and 3D, on however many
-// ranks the test runs (ctest runs it on 1 and 2). The expected values never use the parent map: every
+// Unit tests of the transfer between nested meshes (transfer.h), P1 and CR, 2D and 3D, on however many
+// ranks the test runs (ctest runs it on 1 and 2), from a mesh to its uniform refinement (nested iteration),
+// to the refinement of its marked cells (adaptive refinement: the cells left of x = 0.45), and to that
+// refinement redistributed, the values evaluated on the fine cells and migrated with them. The expected values never use the parent map: every
 // fine DOF point is located among the coarse cells by brute force (barycentric coordinates), and the
 // coarse function is evaluated there independently.
 //   - a globally affine function is reproduced exactly by both elements;
@@ -11,8 +13,9 @@
 //     others max(P uH, psi), and free DOFs keep the prolongated value.
 #include "signorini/assembly.h"
 #include "signorini/contact.h"
+#include "signorini/localrefine.h"
 #include "signorini/mesh.h"
-#include "signorini/nested.h"
+#include "signorini/transfer.h"
 #include "signorini/stages.h"
 #include "unit_check.h"
 
@@ -24,9 +27,13 @@
 
 using namespace signorini;
 
+enum class Refine { Uniform, Marked, Redistributed };
+
 struct ProlongationCase {
   std::string name;
   MeshOptions mesh;
+  Refine      refine = Refine::Uniform;
+  LocalRefinement how = LocalRefinement::Bisection; // of the marked cells
   Element     element;
   PetscInt    dirichlet, contact; // "Face Sets" values
 };
@@ -75,24 +82,32 @@ static PetscInt SumOverRanks(MPI_Comm comm, PetscInt v)
   return v;
 }
 
-// All coarse cells of all ranks, as vertex coordinates ((dim+1)*dim each), so that a point on a coarse
-// face cut by the partition finds the cells on both sides.
-static PetscErrorCode GatherCells(MPI_Comm comm, const Space &coarse, std::vector<PetscReal> &all)
+// Every rank's `mine`, concatenated in rank order, on every rank.
+static PetscErrorCode AllGather(MPI_Comm comm, const std::vector<PetscReal> &mine, std::vector<PetscReal> &all)
 {
   PetscMPIInt size;
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_size(comm, &size));
-  std::vector<PetscReal> mine;
-  for (PetscInt c = 0; c < coarse.NumCells(); ++c) {
-    const Space::Coords X = coarse.X(c);
-    mine.insert(mine.end(), X.x, X.x + coarse.Nb() * coarse.dim);
-  }
   int              n = (int)mine.size();
   std::vector<int> counts(size), displs(size, 0);
   PetscCallMPI(MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, comm));
   for (int p = 1; p < size; ++p) displs[p] = displs[p - 1] + counts[p - 1];
   all.resize(displs[size - 1] + counts[size - 1]);
   PetscCallMPI(MPI_Allgatherv(mine.data(), n, MPIU_REAL, all.data(), counts.data(), displs.data(), MPIU_REAL, comm));
+  PetscFunctionReturn(0);
+}
+
+// All coarse cells of all ranks, as vertex coordinates ((dim+1)*dim each), so that a point on a coarse
+// face cut by the partition finds the cells on both sides.
+static PetscErrorCode GatherCells(MPI_Comm comm, const Space &coarse, std::vector<PetscReal> &all)
+{
+  std::vector<PetscReal> mine;
+  PetscFunctionBeginUser;
+  for (PetscInt c = 0; c < coarse.NumCells(); ++c) {
+    const Space::Coords X = coarse.X(c);
+    mine.insert(mine.end(), X.x, X.x + coarse.Nb() * coarse.dim);
+  }
+  PetscCall(AllGather(comm, mine, all));
   PetscFunctionReturn(0);
 }
 
@@ -140,7 +155,9 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
 {
   MPI_Comm          comm = PETSC_COMM_WORLD;
   const std::string tag  = pc.name;
-  DM                fineDM = nullptr;
+  DM                fineDM = nullptr, coarseDM = nullptr, before = nullptr; // before: the fine mesh before its redistribution
+  PetscSF           migration = nullptr;
+  std::vector<PetscInt> parent; // of the fine mesh (before its redistribution)
   MeshInfo          info;
   MeshLevels        levels;
   Problem           problem;
@@ -149,10 +166,48 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
   Vec               uH, uh, locH, loch, lowerH, lowerh, uRef;
   const PetscScalar *aH, *ah;
   PetscFunctionBeginUser;
-  PetscCall(MeshCreate(comm, pc.mesh, &fineDM, info, &levels, -1));
-  ck.Check(levels.Count() == 2 && levels.dm[1] == fineDM && levels.parent[1].size() > 0, tag + " MeshCreate keeps the coarse level and the parent map");
+  if (pc.refine == Refine::Uniform) {
+    PetscCall(MeshCreate(comm, pc.mesh, &fineDM, info, &levels, -1));
+    ck.Check(levels.Count() == 2 && levels.dm[1] == fineDM && levels.parent[1].size() > 0, tag + " MeshCreate keeps the coarse level and the parent map");
+    coarseDM = levels.dm[0];
+    PetscCall(PetscObjectReference((PetscObject)coarseDM));
+    parent = levels.parent[1];
+  } else {
+    PetscInt          cStart, cEnd;
+    std::vector<char> marked;
+    PetscCall(MeshCreate(comm, pc.mesh, &coarseDM, info));
+    PetscCall(DMPlexGetHeightStratum(coarseDM, 0, &cStart, &cEnd));
+    for (PetscInt c = cStart; c < cEnd; ++c) {
+      PetscReal vol, x[3];
+      PetscCall(DMPlexComputeCellGeometryFVM(coarseDM, c, &vol, x, NULL));
+      marked.push_back(x[0] < 0.45);
+    }
+    PetscCall(RefineMarked(coarseDM, marked, pc.how, &fineDM, &parent));
+    if (pc.refine == Refine::Redistributed) {
+      DM dist;
+      PetscCall(RedistributeMesh(fineDM, &dist, &migration));
+      if (dist) before = fineDM, fineDM = dist;
+      // On more than one rank the load of the refined cells is rebalanced: some cells change rank.
+      PetscMPIInt size, rank;
+      PetscCallMPI(MPI_Comm_size(comm, &size));
+      PetscCallMPI(MPI_Comm_rank(comm, &rank));
+      PetscInt           nleaves, fcStart, fcEnd, movedCells = 0;
+      const PetscInt    *ilocal;
+      const PetscSFNode *iremote;
+      if (migration) {
+        PetscCall(PetscSFGetGraph(migration, NULL, &nleaves, &ilocal, &iremote));
+        PetscCall(DMPlexGetHeightStratum(fineDM, 0, &fcStart, &fcEnd));
+        for (PetscInt l = 0; l < nleaves; ++l) {
+          const PetscInt q = ilocal ? ilocal[l] : l;
+          movedCells += q >= fcStart && q < fcEnd && iremote[l].rank != rank;
+        }
+      }
+      movedCells = SumOverRanks(comm, movedCells);
+      ck.Check(size == 1 ? !migration : movedCells > 0, tag + " the redistribution moves cells (on more than one rank)", "%d cells moved", (int)movedCells);
+    }
+  }
   PetscCall(unit::MakeProblem(comm, pc.mesh.dim, {{pc.dirichlet}, {pc.contact}, "1", "0", kUD, kPsi}, problem));
-  PetscCall(SpaceCreate(levels.dm[0], pc.element, problem, coarse));
+  PetscCall(SpaceCreate(coarseDM, pc.element, problem, coarse));
   PetscCall(SpaceCreate(fineDM, pc.element, problem, fine));
   PetscCall(AssembleSystem(fine, problem, AssemblyOptions(), fineSys));
   PetscCall(DMCreateGlobalVector(coarse.dm, &uH));
@@ -165,11 +220,25 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
   const PetscInt               dim          = fine.dim;
   const std::vector<PetscReal> finePoints   = DofPoints(fine);
   const std::vector<PetscReal> coarsePoints = DofPoints(coarse);
+  // The coarse function uH onto the fine space: its values, and with lowerH its active set.
+  const auto transfer = [&](Vec uH, Vec lowerH, Vec lowerh, Vec uh) -> PetscErrorCode {
+    PetscFunctionBeginUser;
+    if (migration) {
+      CellValues cv;
+      PetscCall(EvaluateOnCells(coarse, uH, lowerH, before, parent, cv));
+      PetscCall(MigrateCellValues(before, migration, fineDM, cv));
+      PetscCall(ApplyCellValues(fine, cv, lowerH ? lowerh : nullptr, uh));
+    } else {
+      PetscCall(Prolongate(coarse, uH, fine, parent, uh));
+      if (lowerH) PetscCall(TransferActiveSet(coarse, uH, lowerH, fine, parent, lowerh, uh));
+    }
+    PetscFunctionReturn(0);
+  };
 
   // 1. A globally affine function: exact for both elements.
   auto affine = [dim](const PetscReal *x) { return 1.0 + 2.0 * x[0] - 3.0 * x[1] + (dim == 3 ? 0.5 * x[2] : 0.0); };
   PetscCall(Interpolate(coarse, affine, uH));
-  PetscCall(Prolongate(coarse, uH, fine, levels.parent[1], uh));
+  PetscCall(transfer(uH, nullptr, nullptr, uh));
   PetscCall(Interpolate(fine, affine, uRef));
   PetscCall(VecAXPY(uRef, -1.0, uh));
   PetscReal err;
@@ -179,7 +248,7 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
   // 2. A generic coarse function (for CR discontinuous across coarse faces, except at their centroids).
   auto generic = [dim](const PetscReal *x) { return std::sin(7 * x[0] + 3 * x[1] + (dim == 3 ? 5 * x[2] : 0.0)) + std::cos(11 * x[0] * x[1]); };
   PetscCall(Interpolate(coarse, generic, uH));
-  PetscCall(Prolongate(coarse, uH, fine, levels.parent[1], uh));
+  PetscCall(transfer(uH, nullptr, nullptr, uh));
   PetscCall(DMGlobalToLocal(coarse.dm, uH, INSERT_VALUES, locH));
   PetscCall(DMGlobalToLocal(fine.dm, uh, INSERT_VALUES, loch));
   PetscCall(VecGetArrayRead(locH, &aH));
@@ -199,11 +268,11 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
     else errInside = std::max(errInside, e), ++nInside;
   }
   // The parent map itself: each fine cell's centroid lies in its (local) parent.
-  for (PetscInt c = 0; c < fine.NumCells(); ++c) {
+  for (PetscInt c = 0; !migration && c < fine.NumCells(); ++c) {
     CellGeometry g;
     PetscReal    lambda[4];
     ComputeCellGeometry(dim, fine.X(c), g);
-    const PetscInt pcell = levels.parent[1][c];
+    const PetscInt pcell = parent[c];
     if (pcell < 0 || pcell >= coarse.NumCells()) {
       ++badParent;
       continue;
@@ -242,9 +311,9 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
     PetscCall(DMLocalToGlobal(coarse.dm, loc, INSERT_VALUES, uH));
     PetscCall(DMRestoreLocalVector(coarse.dm, &loc));
   }
-  PetscCall(Prolongate(coarse, uH, fine, levels.parent[1], uh));
+  PetscCall(transfer(uH, nullptr, nullptr, uh));
   PetscCall(VecCopy(uh, uRef)); // plain prolongation
-  PetscCall(TransferActiveSet(coarse, uH, lowerH, fine, levels.parent[1], lowerh, uh));
+  PetscCall(transfer(uH, lowerH, lowerh, uh));
   PetscCall(ProjectOntoConstraints(fineSys, fine.dirichletOwned, lowerh, uh));
 
   // Expected, independently: a fine contact DOF is forced onto psi when the coarse contact DOFs that
@@ -257,21 +326,39 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
   PetscCall(DMGetLocalVector(coarse.dm, &locLH));
   PetscCall(DMGlobalToLocal(coarse.dm, lowerH, INSERT_VALUES, locLH));
   PetscCall(VecGetArrayRead(locLH, &lH));
+  // All coarse faces on Gamma_C of all ranks (a redistributed fine mesh need not have its points' coarse
+  // cells on the same rank): the cell's vertices, the vertex opposite the face, and for each cell DOF
+  // whether it is an active contact DOF.
+  const PetscInt    nb = coarse.Nb(), record = nb * dim + 1 + nb;
+  std::vector<PetscReal> mineFaces, contactFaces;
+  for (const BoundaryFace &bf : coarse.boundary) {
+    if (bf.part != pc.contact) continue;
+    const Space::Coords X = coarse.X(bf.cell);
+    mineFaces.insert(mineFaces.end(), X.x, X.x + nb * dim);
+    mineFaces.push_back(bf.opposite);
+    for (PetscInt j = 0; j < nb; ++j) {
+      const PetscInt J = coarse.Dofs(bf.cell)[j];
+      mineFaces.push_back(coarse.kindLocal[J] == kContact && PetscRealPart(aH[J] - lH[J]) <= 1e-10);
+    }
+  }
+  PetscCall(AllGather(comm, mineFaces, contactFaces));
   std::vector<char> forced(fine.numLocal, 0);
   for (PetscInt i = 0; i < fine.numLocal; ++i) {
     if (fine.kindLocal[i] != kContact) continue;
     const PetscReal *x = &finePoints[i * dim];
     bool             found = false, active = true;
-    for (const BoundaryFace &bf : coarse.boundary) {
-      if (bf.part != pc.contact) continue;
-      PetscReal lambda[4];
-      Barycentric(coarse, bf.cell, x, lambda);
-      if (*std::min_element(lambda, lambda + coarse.Nb()) < -1e-10 || std::fabs(lambda[bf.opposite]) > 1e-10) continue;
+    for (size_t off = 0; off < contactFaces.size(); off += record) {
+      const PetscReal *X = &contactFaces[off], *flags = X + nb * dim + 1;
+      const PetscInt   opposite = (PetscInt)X[nb * dim];
+      CellGeometry     g;
+      PetscReal        lambda[4];
+      ComputeCellGeometry(dim, X, g);
+      signorini::Barycentric(dim, g, X, x, lambda);
+      if (*std::min_element(lambda, lambda + nb) < -1e-10 || std::fabs(lambda[opposite]) > 1e-10) continue;
       found = true;
-      for (PetscInt j = 0; j < coarse.Nb(); ++j) {
-        const PetscInt J = coarse.Dofs(bf.cell)[j];
-        const bool on = pc.element == Element::P1 ? (j != bf.opposite && lambda[j] > 1e-10) : J == bf.dof;
-        if (on) active = active && coarse.kindLocal[J] == kContact && PetscRealPart(aH[J] - lH[J]) <= 1e-10;
+      for (PetscInt j = 0; j < nb; ++j) {
+        const bool on = pc.element == Element::P1 ? (j != opposite && lambda[j] > 1e-10) : j == opposite;
+        if (on) active = active && flags[j] > 0;
       }
       break;
     }
@@ -341,6 +428,9 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
   PetscCall(SpaceDestroy(fine));
   PetscCall(MeshLevelsDestroy(levels));
   PetscCall(DMDestroy(&fineDM));
+  PetscCall(DMDestroy(&coarseDM));
+  PetscCall(DMDestroy(&before));
+  PetscCall(PetscSFDestroy(&migration));
   PetscFunctionReturn(0);
 }
 
@@ -358,6 +448,15 @@ static std::vector<ProlongationCase> Cases()
     c3.element = e, c3.dirichlet = 2, c3.contact = 1;
     c3.name = Format("3D 3x2x2 %s", ElementName(e));
     out.push_back(c3);
+    for (const ProlongationCase &c : {c2, c3})
+      for (LocalRefinement how : {LocalRefinement::Bisection, LocalRefinement::SBR})
+        for (Refine r : {Refine::Marked, Refine::Redistributed}) {
+          if (how == LocalRefinement::SBR && c.mesh.dim == 3) continue;
+          ProlongationCase m = c;
+          m.refine = r, m.how = how;
+          m.name   = Format("%s, marked cells refined (%s)%s", c.name.c_str(), how == LocalRefinement::SBR ? "sbr" : "bisection", r == Refine::Redistributed ? " and redistributed" : "");
+          out.push_back(m);
+        }
   }
   return out;
 }

@@ -122,43 +122,11 @@ static PetscErrorCode SharedVertexMismatch(DM dm, double *mismatch)
   PetscFunctionReturn(0);
 }
 
-// Largest negative barycentric coordinate of a fine cell's centroid in its parent (0 when inside).
-static PetscErrorCode ParentOutside(DM coarse, DM fine, const std::vector<PetscInt> &parent, double *outside)
-{
-  PetscInt cS, cE, ccS;
-  PetscFunctionBeginUser;
-  *outside = 0;
-  PetscCall(DMPlexGetHeightStratum(fine, 0, &cS, &cE));
-  PetscCall(DMPlexGetHeightStratum(coarse, 0, &ccS, NULL));
-  for (PetscInt c = cS; c < cE; ++c) {
-    PetscReal vol, x[3], v0[3], J[9], invJ[9], detJ;
-    PetscInt  dim;
-    PetscCall(DMGetDimension(fine, &dim));
-    PetscCall(DMPlexComputeCellGeometryFVM(fine, c, &vol, x, NULL));
-    PetscCall(DMPlexComputeCellGeometryAffineFEM(coarse, ccS + parent[c - cS], v0, J, invJ, &detJ));
-    // reference coordinates xi = invJ (x - v0) - 1 on PETSc's reference simplex in [-1, 1]^dim
-    PetscReal xi[3] = {0, 0, 0}, lambda0 = 1;
-    for (PetscInt i = 0; i < dim; ++i) {
-      for (PetscInt j = 0; j < dim; ++j) xi[i] += invJ[i * dim + j] * (x[j] - v0[j]);
-      xi[i] -= 1.0;
-      *outside = std::max(*outside, -(double)(xi[i] + 1) / 2);
-      lambda0 -= (xi[i] + 1) / 2;
-    }
-    *outside = std::max(*outside, -(double)lambda0);
-  }
-  PetscFunctionReturn(0);
-}
-
 static PetscErrorCode CompareLevels(unit::Checker &ck, const std::string &tag, DM coarse, DM direct, DM transform, const std::vector<PetscInt> &parent)
 {
   std::vector<std::array<double, 4>> a, b;
   PetscFunctionBeginUser;
-  PetscCall(DMPlexCheckSymmetry(direct));
-  PetscCall(DMPlexCheckSkeleton(direct, 0));
-  PetscCall(DMPlexCheckFaces(direct, 0));
-  PetscCall(DMPlexCheckGeometry(direct));
-  PetscCall(DMPlexCheckPointSF(direct, NULL, PETSC_FALSE));
-  PetscCall(DMPlexCheckInterfaceCones(direct));
+  PetscCall(unit::CheckPlex(direct));
   ck.Check(true, tag + " passes DMPlexCheckSymmetry/Skeleton/Faces/Geometry/PointSF/InterfaceCones");
 
   std::vector<PetscInt> ca, cb;
@@ -222,7 +190,7 @@ static PetscErrorCode CompareLevels(unit::Checker &ck, const std::string &tag, D
   PetscCall(VecNorm(gb, NORM_2, &normb));
   ck.Check(na == nb && std::fabs(sa - sb) <= 1e-12 * std::fabs(sa) && std::fabs(norma - normb) <= 1e-12 * norma, tag + " global coordinate vector (size, sum, norm)", "size %d, PETSc's %d; sum %g vs %g; norm %g vs %g", (int)nb, (int)na, (double)sb, (double)sa, (double)normb, (double)norma);
   double outside, mismatch;
-  PetscCall(ParentOutside(coarse, direct, parent, &outside));
+  PetscCall(unit::ParentOutside(coarse, direct, parent, &outside));
   ck.Check(outside < 1e-12, tag + " every fine cell lies in its parent", "barycentric coordinate %g", -outside);
   PetscCall(SharedVertexMismatch(direct, &mismatch));
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &mismatch, 1, MPI_DOUBLE, MPI_MAX, PetscObjectComm((PetscObject)direct)));

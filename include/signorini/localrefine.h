@@ -7,6 +7,7 @@
 #include "signorini/common.h"
 
 #include <petscdmplex.h>
+#include <petscdmplextransform.h>
 
 namespace signorini {
 
@@ -16,5 +17,11 @@ namespace signorini {
 PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked, DM *fine, std::vector<PetscInt> *parent);
 // By PETSc's skeleton-based refinement, DMPlexTransform "refine_sbr" (2D only; localrefine.cpp).
 PetscErrorCode RefineMarkedSBR(DM coarse, const std::vector<char> &marked, DM *fine, std::vector<PetscInt> *parent);
+// PETSc's refinement of `coarse` by a DMPlexTransform of `type`, restricted to the points of `active`
+// (value DM_ADAPT_REFINE; null: all), with the parent map as above when asked for.
+PetscErrorCode TransformRefine(DM coarse, DMPlexTransformType type, DMLabel active, DM *fine, std::vector<PetscInt> *parent);
+// The refinement of marked cells by one of the two (SBR: triangles only, an input error otherwise).
+enum class LocalRefinement { Bisection, SBR };
+PetscErrorCode RefineMarked(DM coarse, const std::vector<char> &marked, LocalRefinement how, DM *fine, std::vector<PetscInt> *parent);
 
 } // namespace signorini

@@ -9,6 +9,7 @@
 
 #include "signorini/mesh.h"
 #include "signorini/strategy.h"
+#include "signorini/transfer.h"
 
 namespace signorini {
 
@@ -18,19 +19,7 @@ struct NestedOptions {
 };
 PetscErrorCode NestedOptionsFromCommandLine(MPI_Comm comm, NestedOptions &o);
 
-// Prolongation P from the space on a mesh (coarse) to the same kind of space on its uniform refinement
-// (fine), parent[c] = the coarse cell (c - cStart) containing fine cell c: uh = P uH interpolates the
-// coarse function at the fine DOF points (vertices for P1, face centroids for CR). P1 functions are
-// reproduced exactly; a CR function is reproduced exactly inside every coarse cell, and at fine faces on
-// a coarse face, where it may jump, uh takes the mean of the two sides. Parallel: refinement is local,
-// so every fine cell's parent is on the same rank. uh is not yet projected onto the constraints.
-PetscErrorCode Prolongate(const Space &coarse, Vec uH, const Space &fine, const std::vector<PetscInt> &parent, Vec uh);
-
-// Active-set transfer: a fine contact DOF whose point lies on coarse contact DOFs that are all active
-// (uH = psi there: the coarse vertices of the smallest coarse face containing it for P1, the coarse face
-// containing it for CR) gets uh = psi (lowerh). The prolongated values alone would leave half of them off
-// the obstacle for CR (its restriction to a contact face is only zero at the face's centroid).
-PetscErrorCode TransferActiveSet(const Space &coarse, Vec uH, Vec lowerH, const Space &fine, const std::vector<PetscInt> &parent, Vec lowerh, Vec uh);
+// The prolongation of each level's solution with its active set to the next: transfer.h.
 
 // Nested iteration as a strategy of the loop over meshes (strategy.h): the levels levels.dm[0 ..
 // Count()-1], coarse to fine, each from the prolongation of the one before (the coarsest from u_D). The

@@ -3,6 +3,7 @@
 // then renamed, so a failed run never leaves a half-written file).
 #pragma once
 
+#include "signorini/adapt.h"
 #include "signorini/contact.h"
 #include "signorini/error.h"
 #include "signorini/estimate.h"
@@ -17,6 +18,7 @@ struct Report {
   PetscInt    dim = 0, refine = 0, coarseCells = 0, cells = 0, dofs = 0, dirichletDofs = 0, contactDofs = 0, ranks = 1, edgeCut = -1;
   std::vector<PetscInt> cellsPerRank;
   SolveResult solve;
+  std::vector<AdaptRow> adapt; // adaptive refinement: one row per mesh (empty without)
   bool        hasExact = false;
   ErrorNorms  error;
   Estimate    estimate; // without the cell indicators; estimate.computed = false: none (-estimate none)

@@ -37,6 +37,13 @@ inline void SimplexPoint(PetscInt dim, const PetscReal *X, const PetscReal *lamb
   }
 }
 
+// The barycentric coordinates of the point of DOF i of a cell (where basis function i is 1): vertex i
+// (P1), or the centroid of the face opposite vertex i (CR).
+inline void DofLambda(Element e, PetscInt dim, PetscInt i, PetscReal *lambda)
+{
+  for (PetscInt k = 0; k <= dim; ++k) lambda[k] = e == Element::P1 ? (k == i) : (k == i ? 0.0 : 1.0 / dim);
+}
+
 // lambda: the barycentric coordinates of x in the simplex of geometry g whose first vertex is X0
 // (lambda_k = grad lambda_k . (x - X0) for k >= 1). Outside the simplex some lambda_k are negative.
 inline void Barycentric(PetscInt dim, const CellGeometry &g, const PetscReal *X0, const PetscReal *x, PetscReal *lambda)

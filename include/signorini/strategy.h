@@ -6,9 +6,8 @@
 //     its active set to the next level as its initial guess, and the finest one is kept.
 //   ConvergenceStudy (study.h): every element on every study level without carry, each solution kept
 //     for its row, then a reference solve on a finer level; the table afterwards.
-// Adaptive refinement (issue 17 item 3) is meant to be the next strategy: its Next would mark cells by
-// the estimate of the solution just solved and refine them, its Carry prolongate that solution to the
-// non-uniformly refined mesh. It does not exist yet.
+//   AdaptiveRefinement (adapt.h): each solution's cells marked by the estimate and refined, the solution
+//     carried to the new mesh with its active set; the last one is kept.
 #pragma once
 
 #include "signorini/pipeline.h"
@@ -45,5 +44,9 @@ private:
   PipelineOptions options_;
   bool            done_ = false;
 };
+
+// The loop over meshes: the scene on every mesh the strategy hands out, each through the pipeline, with
+// what the strategy carries from one mesh to the next.
+PetscErrorCode SolveMeshes(const Problem &problem, MeshStrategy &strategy);
 
 } // namespace signorini

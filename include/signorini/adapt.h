@@ -1,0 +1,72 @@
+// Adaptive refinement as a strategy of the loop over meshes (strategy.h): solve, estimate, mark, refine,
+// up to -adapt_steps times. After each solve the cells are marked by Doerfler's rule on the estimate's
+// cell indicators (mark.h), the marked cells are refined conformingly (localrefine.h), the solution is
+// evaluated on the new cells with its active set (transfer.h) and, if the load has become unbalanced, the
+// new mesh is redistributed with those values; they are the initial guess of the next solve (nested
+// iteration across the adaptive steps). The run stops after the last step, once eta < -adapt_tol, or
+// when nothing is left to mark. Every step is a row: the mesh, the estimate, the error where the exact
+// solution is known, the solve, and the overhead of going on to the next mesh.
+#pragma once
+
+#include "signorini/localrefine.h"
+#include "signorini/strategy.h"
+#include "signorini/transfer.h"
+
+namespace signorini {
+
+struct AdaptOptions {
+  PetscInt  steps     = 0;   // -adapt_steps: refinements (0: no adaptive refinement)
+  PetscReal theta     = 0.5; // -adapt_theta: Doerfler parameter (mark.h)
+  PetscReal tol       = 0;   // -adapt_tol: stop once eta < tol
+  PetscReal imbalance = 1.2; // -adapt_imbalance: redistribute when max cells per rank / mean exceeds it
+  // -adapt_refinement: bisection (localrefine.h, 2D and 3D) or sbr (PETSc's refine_sbr transform, 2D);
+  // bisection by default: at 131 k triangles refine_sbr took 3.1 s, six times the next solve.
+  LocalRefinement refinement = LocalRefinement::Bisection;
+};
+PetscErrorCode AdaptOptionsFromCommandLine(MPI_Comm comm, AdaptOptions &o);
+
+// One mesh of the run. The times are max over ranks, in seconds; the overhead (estimate to transfer) is
+// what it took to go from this mesh's solution to the next mesh and its initial guess.
+struct AdaptRow {
+  PetscInt  cells = 0, dofs = 0, newtonIts = 0, kspIts = 0, marked = 0;
+  PetscReal eta = 0, error = -1; // error: against the exact solution, broken H1 seminorm (-1: not known)
+  double    solveSeconds = 0, estimateSeconds = 0, markSeconds = 0, refineSeconds = 0, redistributeSeconds = 0, transferSeconds = 0;
+  bool      redistributed = false; // the next mesh was redistributed
+};
+// The rows as a table for the summary printed after the run.
+std::string AdaptTable(const std::vector<AdaptRow> &rows);
+
+class AdaptiveRefinement : public MeshStrategy {
+public:
+  // The squared cell indicators (per local cell) and the estimate eta of a solution, and the seconds
+  // they took. By default the pipeline's estimate (MeshSolution::estimate); a test may feed others.
+  using Indicators = std::function<PetscErrorCode(const MeshSolution &, std::vector<PetscReal> &eta2, PetscReal &eta, double &seconds)>;
+  // Takes a reference to `mesh`, the first mesh, and keeps a reference to the mesh of the step under
+  // way until it has refined it (the pipeline frees only its space's clone). errorDegree: the
+  // quadrature of the error against the exact solution, when the problem has one.
+  AdaptiveRefinement(DM mesh, const Problem &problem, const PipelineOptions &o, const AdaptOptions &a, PetscInt errorDegree, Indicators indicators = nullptr);
+  ~AdaptiveRefinement() override;
+  PetscErrorCode Next(Step &step, bool &more) override;
+  PetscErrorCode Carry(MeshSolution &cur, bool &carried) override;
+  PetscErrorCode Solved(MeshSolution &&m) override;
+  MeshSolution          finest;       // the last solution; the caller destroys it
+  std::vector<AdaptRow> rows;         // one per mesh solved
+  std::vector<PetscInt> cellsPerRank; // of the last mesh
+
+private:
+  PetscErrorCode Refine(); // the marked cells of mesh_, the solution carried to the new mesh_
+
+  DM                mesh_; // the mesh of the step under way
+  const Problem    &problem_;
+  PipelineOptions   options_;
+  AdaptOptions      adapt_;
+  PetscInt          errorDegree_;
+  Indicators        indicators_;
+  PetscInt          step_ = -1;
+  bool              stop_ = false;
+  MeshSolution      prev_;    // the solution of mesh_ until it is carried
+  std::vector<char> marked_;  // the cells of mesh_ to refine
+  CellValues        carried_; // prev_ on the cells of the new mesh
+};
+
+} // namespace signorini

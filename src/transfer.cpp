@@ -1,0 +1,309 @@
+#include "signorini/transfer.h"
+#include "signorini/contact.h"
+#include "signorini/mesh.h"
+
+#include <cmath>
+
+namespace signorini {
+
+namespace {
+// Calls f(c, i, pc, lambda) for every DOF i of every fine cell c, with pc its parent and lambda the
+// barycentric coordinates of the DOF's point in pc; X(c) gives the vertex coordinates of fine cell c.
+template <class Coords, class F>
+void ForEachFineDof(const Space &coarse, PetscInt numFine, const std::vector<PetscInt> &parent, Coords X, F f)
+{
+  const PetscInt dim = coarse.dim;
+  PetscReal      lambda[4], mu[4], x[3];
+  for (PetscInt c = 0; c < numFine; ++c) {
+    const PetscInt      pc = parent[c];
+    const Space::Coords XH = coarse.X(pc), Xh = X(c);
+    CellGeometry        g;
+    ComputeCellGeometry(dim, XH, g);
+    for (PetscInt i = 0; i <= dim; ++i) {
+      DofLambda(coarse.element, dim, i, mu);
+      SimplexPoint(dim, Xh, mu, x);
+      Barycentric(dim, g, XH, x, lambda);
+      f(c, i, pc, lambda);
+    }
+  }
+}
+
+// Whether the point of barycentric coordinates lambda in coarse cell pc lies on active coarse contact
+// DOFs only (aU, aL: local arrays of uH and its lower bound; tol: ActiveTolerance).
+bool OnActiveContact(const Space &coarse, PetscInt pc, const PetscReal *lambda, const PetscScalar *aU, const PetscScalar *aL, PetscReal tol)
+{
+  const PetscReal eps    = 1e-10;
+  bool            active = true;
+  for (PetscInt j = 0; j < coarse.Nb(); ++j) {
+    // P1: vertex j supports the point if lambda_j > 0; CR: face j contains it if lambda_j = 0.
+    const bool     on = coarse.element == Element::P1 ? lambda[j] > eps : std::fabs(lambda[j]) < eps;
+    const PetscInt J  = coarse.Dofs(pc)[j];
+    if (on) active = active && coarse.kindLocal[J] == kContact && PetscRealPart(aU[J] - aL[J]) <= tol;
+  }
+  return active;
+}
+
+// The coarse vectors as local arrays, for the evaluation at fine DOF points.
+struct CoarseArrays {
+  const Space       &space;
+  Vec                locU = nullptr, locL = nullptr;
+  const PetscScalar *u = nullptr, *lower = nullptr;
+  PetscReal          tol = 0;
+  explicit CoarseArrays(const Space &s) : space(s) {}
+  PetscErrorCode Get(Vec uH, Vec lowerH)
+  {
+    PetscFunctionBeginUser;
+    PetscCall(DMGetLocalVector(space.dm, &locU));
+    PetscCall(DMGlobalToLocal(space.dm, uH, INSERT_VALUES, locU));
+    PetscCall(VecGetArrayRead(locU, &u));
+    if (lowerH) {
+      PetscReal umax;
+      // Active as the contact solve counts it, relative to the size of u.
+      PetscCall(VecNorm(uH, NORM_INFINITY, &umax));
+      tol = ActiveTolerance(umax);
+      PetscCall(DMGetLocalVector(space.dm, &locL));
+      PetscCall(DMGlobalToLocal(space.dm, lowerH, INSERT_VALUES, locL));
+      PetscCall(VecGetArrayRead(locL, &lower));
+    }
+    PetscFunctionReturn(0);
+  }
+  PetscErrorCode Restore()
+  {
+    PetscFunctionBeginUser;
+    PetscCall(VecRestoreArrayRead(locU, &u));
+    PetscCall(DMRestoreLocalVector(space.dm, &locU));
+    if (locL) {
+      PetscCall(VecRestoreArrayRead(locL, &lower));
+      PetscCall(DMRestoreLocalVector(space.dm, &locL));
+    }
+    PetscFunctionReturn(0);
+  }
+};
+
+// uh = sum / count, summed over the ranks sharing a DOF (sum, count: local vectors of the fine space).
+PetscErrorCode AverageToGlobal(const Space &fine, Vec sum, Vec count, Vec uh)
+{
+  Vec countGlobal;
+  PetscFunctionBeginUser;
+  PetscCall(DMGetGlobalVector(fine.dm, &countGlobal));
+  PetscCall(VecSet(uh, 0));
+  PetscCall(VecSet(countGlobal, 0));
+  PetscCall(DMLocalToGlobal(fine.dm, sum, ADD_VALUES, uh));
+  PetscCall(DMLocalToGlobal(fine.dm, count, ADD_VALUES, countGlobal));
+  PetscCall(VecPointwiseDivide(uh, uh, countGlobal));
+  PetscCall(DMRestoreGlobalVector(fine.dm, &countGlobal));
+  PetscFunctionReturn(0);
+}
+
+// uh = lowerh at the owned DOFs flagged in the local vector flag. Every cell that sees a DOF makes the
+// same decision (it depends only on where the point lies in the coarse mesh), so summing the flags over
+// ranks only makes the owner see them.
+PetscErrorCode SetFlaggedActive(const Space &fine, Vec flag, Vec lowerh, Vec uh)
+{
+  Vec                flagGlobal;
+  const PetscScalar *fl, *lh;
+  PetscScalar       *a;
+  PetscFunctionBeginUser;
+  PetscCall(DMGetGlobalVector(fine.dm, &flagGlobal));
+  PetscCall(VecSet(flagGlobal, 0));
+  PetscCall(DMLocalToGlobal(fine.dm, flag, ADD_VALUES, flagGlobal));
+  PetscCall(VecGetArrayRead(flagGlobal, &fl));
+  PetscCall(VecGetArrayRead(lowerh, &lh));
+  PetscCall(VecGetArray(uh, &a));
+  for (PetscInt i = 0; i < fine.numOwned; ++i)
+    if (PetscRealPart(fl[i]) > 0) a[i] = lh[i];
+  PetscCall(VecRestoreArray(uh, &a));
+  PetscCall(VecRestoreArrayRead(lowerh, &lh));
+  PetscCall(VecRestoreArrayRead(flagGlobal, &fl));
+  PetscCall(DMRestoreGlobalVector(fine.dm, &flagGlobal));
+  PetscFunctionReturn(0);
+}
+
+// Local work vectors of the fine space, zeroed, with their arrays.
+struct LocalSums {
+  const Space &space;
+  Vec          vec[2] = {nullptr, nullptr};
+  PetscScalar *a[2]   = {nullptr, nullptr};
+  explicit LocalSums(const Space &s) : space(s) {}
+  PetscErrorCode Get(int n)
+  {
+    PetscFunctionBeginUser;
+    for (int k = 0; k < n; ++k) {
+      PetscCall(DMGetLocalVector(space.dm, &vec[k]));
+      PetscCall(VecSet(vec[k], 0));
+      PetscCall(VecGetArray(vec[k], &a[k]));
+    }
+    PetscFunctionReturn(0);
+  }
+  PetscErrorCode RestoreArrays()
+  {
+    PetscFunctionBeginUser;
+    for (int k = 0; k < 2; ++k)
+      if (vec[k]) PetscCall(VecRestoreArray(vec[k], &a[k]));
+    PetscFunctionReturn(0);
+  }
+  PetscErrorCode Restore()
+  {
+    PetscFunctionBeginUser;
+    for (int k = 0; k < 2; ++k)
+      if (vec[k]) PetscCall(DMRestoreLocalVector(space.dm, &vec[k]));
+    PetscFunctionReturn(0);
+  }
+};
+} // namespace
+
+PetscErrorCode Prolongate(const Space &coarse, Vec uH, const Space &fine, const std::vector<PetscInt> &parent, Vec uh)
+{
+  CoarseArrays H(coarse);
+  LocalSums    s(fine); // sum, count
+  PetscFunctionBeginUser;
+  PetscCheck((PetscInt)parent.size() == fine.NumCells(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "parent map has %d entries for %d fine cells", (int)parent.size(), (int)fine.NumCells());
+  PetscCheck(coarse.element == fine.element, PETSC_COMM_SELF, PETSC_ERR_ARG_INCOMP, "prolongation between different elements");
+  PetscCall(H.Get(uH, nullptr));
+  PetscCall(s.Get(2));
+  ForEachFineDof(coarse, fine.NumCells(), parent, [&](PetscInt c) { return fine.X(c); }, [&](PetscInt c, PetscInt i, PetscInt pc, const PetscReal *lambda) {
+    const PetscInt dof = fine.Dofs(c)[i];
+    s.a[0][dof] += coarse.Value(pc, H.u, lambda);
+    s.a[1][dof] += 1;
+  });
+  PetscCall(s.RestoreArrays());
+  PetscCall(H.Restore());
+  PetscCall(AverageToGlobal(fine, s.vec[0], s.vec[1], uh));
+  PetscCall(s.Restore());
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TransferActiveSet(const Space &coarse, Vec uH, Vec lowerH, const Space &fine, const std::vector<PetscInt> &parent, Vec lowerh, Vec uh)
+{
+  CoarseArrays H(coarse);
+  LocalSums    s(fine); // flags
+  PetscFunctionBeginUser;
+  PetscCall(H.Get(uH, lowerH));
+  PetscCall(s.Get(1));
+  ForEachFineDof(coarse, fine.NumCells(), parent, [&](PetscInt c) { return fine.X(c); }, [&](PetscInt c, PetscInt i, PetscInt pc, const PetscReal *lambda) {
+    const PetscInt dof = fine.Dofs(c)[i];
+    if (fine.kindLocal[dof] == kContact && OnActiveContact(coarse, pc, lambda, H.u, H.lower, H.tol)) s.a[0][dof] = 1;
+  });
+  PetscCall(s.RestoreArrays());
+  PetscCall(H.Restore());
+  PetscCall(SetFlaggedActive(fine, s.vec[0], lowerh, uh));
+  PetscCall(s.Restore());
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode EvaluateOnCells(const Space &coarse, Vec uH, Vec lowerH, DM fine, const std::vector<PetscInt> &parent, CellValues &cv)
+{
+  CoarseArrays       H(coarse);
+  PetscInt           cStart, cEnd, vStart;
+  Vec                coords;
+  DM                 cdm;
+  PetscSection       csec;
+  const PetscScalar *xa;
+  PetscFunctionBeginUser;
+  const PetscInt dim = coarse.dim, nb = dim + 1;
+  PetscCall(DMPlexGetHeightStratum(fine, 0, &cStart, &cEnd));
+  PetscCall(DMPlexGetDepthStratum(fine, 0, &vStart, NULL));
+  PetscCheck((PetscInt)parent.size() == cEnd - cStart, PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "parent map has %d entries for %d fine cells", (int)parent.size(), (int)(cEnd - cStart));
+  // The fine cells' vertex coordinates, in the order of the cell tables a space on this mesh will have.
+  std::vector<Space::Coords> X(cEnd - cStart);
+  PetscCall(DMGetCoordinatesLocal(fine, &coords));
+  PetscCall(DMGetCoordinateDM(fine, &cdm));
+  PetscCall(DMGetLocalSection(cdm, &csec));
+  PetscCall(VecGetArrayRead(coords, &xa));
+  for (PetscInt c = cStart; c < cEnd; ++c) {
+    PetscInt verts[4];
+    PetscCall(CellVertices(fine, c, dim, verts));
+    for (PetscInt k = 0; k < nb; ++k) {
+      PetscInt off;
+      PetscCall(PetscSectionGetOffset(csec, verts[k], &off));
+      for (PetscInt d = 0; d < dim; ++d) X[c - cStart].x[k * dim + d] = PetscRealPart(xa[off + d]);
+    }
+  }
+  PetscCall(VecRestoreArrayRead(coords, &xa));
+  PetscCall(H.Get(uH, lowerH));
+  cv.nb = nb;
+  cv.data.assign((cEnd - cStart) * 2 * nb, 0);
+  ForEachFineDof(coarse, cEnd - cStart, parent, [&](PetscInt c) { return X[c]; }, [&](PetscInt c, PetscInt i, PetscInt pc, const PetscReal *lambda) {
+    cv.data[c * 2 * nb + i] = coarse.Value(pc, H.u, lambda);
+    if (lowerH) cv.data[c * 2 * nb + nb + i] = OnActiveContact(coarse, pc, lambda, H.u, H.lower, H.tol);
+  });
+  PetscCall(H.Restore());
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode RedistributeMesh(DM mesh, DM *dist, PetscSF *migration)
+{
+  PetscPartitioner part;
+  PetscFunctionBeginUser;
+  *dist = nullptr, *migration = nullptr;
+  PetscCall(DMPlexGetPartitioner(mesh, &part));
+  PetscCall(PetscPartitionerSetType(part, PETSCPARTITIONERPTSCOTCH));
+  PetscCall(DMPlexDistribute(mesh, 0, migration, dist));
+  if (*dist) PetscCall(PetscObjectSetName((PetscObject)*dist, "mesh"));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode MigrateCellValues(DM from, PetscSF migration, DM to, CellValues &cv)
+{
+  PetscSection origin, target;
+  PetscInt     cStart, cEnd, pStart, pEnd;
+  PetscReal   *data = nullptr;
+  PetscFunctionBeginUser;
+  // The values as a field on the cells of `from`, sent along the migration's star forest.
+  PetscCall(DMPlexGetChart(from, &pStart, &pEnd));
+  PetscCall(DMPlexGetHeightStratum(from, 0, &cStart, &cEnd));
+  const PetscInt stride = 2 * cv.nb;
+  PetscCheck((PetscInt)cv.data.size() == stride * (cEnd - cStart), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "%d cell values for %d cells", (int)cv.data.size(), (int)(cEnd - cStart));
+  PetscCall(PetscSectionCreate(PETSC_COMM_SELF, &origin));
+  PetscCall(PetscSectionSetChart(origin, pStart, pEnd));
+  for (PetscInt c = cStart; c < cEnd; ++c) PetscCall(PetscSectionSetDof(origin, c, stride));
+  PetscCall(PetscSectionSetUp(origin));
+  PetscCall(PetscSectionCreate(PETSC_COMM_SELF, &target));
+  PetscCall(DMPlexDistributeData(from, migration, origin, MPIU_REAL, cv.data.data(), target, (void **)&data));
+  PetscCall(DMPlexGetHeightStratum(to, 0, &cStart, &cEnd));
+  std::vector<PetscReal> arrived(stride * (cEnd - cStart));
+  for (PetscInt c = cStart; c < cEnd; ++c) {
+    PetscInt off, n;
+    PetscCall(PetscSectionGetDof(target, c, &n));
+    PetscCall(PetscSectionGetOffset(target, c, &off));
+    PetscCheck(n == stride, PETSC_COMM_SELF, PETSC_ERR_PLIB, "cell %d arrived with %d values, not %d", (int)c, (int)n, (int)stride);
+    for (PetscInt k = 0; k < stride; ++k) arrived[(c - cStart) * stride + k] = data[off + k];
+  }
+  cv.data.swap(arrived);
+  PetscCall(PetscFree(data));
+  PetscCall(PetscSectionDestroy(&origin));
+  PetscCall(PetscSectionDestroy(&target));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ApplyCellValues(const Space &fine, const CellValues &cv, Vec lowerh, Vec uh)
+{
+  LocalSums s(fine); // sum, count; then flags
+  PetscFunctionBeginUser;
+  const PetscInt nb = fine.Nb();
+  PetscCheck(cv.nb == nb && (PetscInt)cv.data.size() == 2 * nb * fine.NumCells(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "%d cell values for %d cells", (int)cv.data.size(), (int)fine.NumCells());
+  PetscCall(s.Get(2));
+  for (PetscInt c = 0; c < fine.NumCells(); ++c)
+    for (PetscInt i = 0; i < nb; ++i) {
+      const PetscInt dof = fine.Dofs(c)[i];
+      s.a[0][dof] += cv.data[c * 2 * nb + i];
+      s.a[1][dof] += 1;
+    }
+  PetscCall(s.RestoreArrays());
+  PetscCall(AverageToGlobal(fine, s.vec[0], s.vec[1], uh));
+  if (lowerh) {
+    PetscCall(VecSet(s.vec[0], 0));
+    PetscCall(VecGetArray(s.vec[0], &s.a[0]));
+    for (PetscInt c = 0; c < fine.NumCells(); ++c)
+      for (PetscInt i = 0; i < nb; ++i) {
+        const PetscInt dof = fine.Dofs(c)[i];
+        if (fine.kindLocal[dof] == kContact && cv.data[c * 2 * nb + nb + i] > 0) s.a[0][dof] = 1;
+      }
+    PetscCall(VecRestoreArray(s.vec[0], &s.a[0]));
+    PetscCall(SetFlaggedActive(fine, s.vec[0], lowerh, uh));
+  }
+  PetscCall(s.Restore());
+  PetscFunctionReturn(0);
+}
+
+} // namespace signorini

@@ -1,0 +1,108 @@
+"""Adaptive refinement (-adapt_steps): solve, estimate, mark, refine. Checked end to end:
+  - the same adapted meshes on 1 and 2 ranks (cells, DOFs, marked cells at every step) and the same final
+    energy (1e-9 relative), also when the refined mesh is redistributed at every step (-adapt_imbalance 1);
+  - every step refines, eta falls, eta bounds the energy error from above (the guaranteed bound) on the
+    manufactured scene, the last solution satisfies the KKT conditions, and the summary describes the
+    last mesh (cells, DOFs, the "adapt" rows);
+  - on the singular scene stiff-below-h2 the estimate falls like DOFs^-1/2 (fitted slope over the last
+    steps <= -0.45), where uniform refinement gives DOFs^-0.32;
+  - -adapt_tol stops at the first step whose eta is below it; -output writes the last mesh;
+  - bad input: one clear line each."""
+import math
+import os
+import tempfile
+
+from harness import ROOT, Checker, run, scene
+
+c = Checker()
+
+
+def slope(dofs, values):
+    xs, ys = [math.log(d) for d in dofs], [math.log(v) for v in values]
+    mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
+    return sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / sum((x - mx) ** 2 for x in xs)
+
+
+def kkt_ok(tag, s):
+    k = s["kkt"]
+    c.check(s["solver"]["converged_reason"].startswith("CONVERGED") and k["min_gap"] >= -1e-12 and k["relative"] <= 1e-6,
+            "%s: the last solution satisfies the KKT conditions (relative %.1e)" % (tag, k["relative"]))
+
+
+base = scene("manufactured-2d") + ["-space", "cr", "-box_faces", "8", "-adapt_steps", "6"]
+runs = {}
+for ranks, extra in [(1, []), (2, []), (2, ["-adapt_imbalance", "1"])]:
+    _, _, _, s = run(base + extra, ranks=ranks)
+    tag = "manufactured-2d cr, %d rank(s)%s" % (ranks, " " + " ".join(extra) if extra else "")
+    rows = s["adapt"]
+    c.check(len(rows) == 7 and all(r["marked"] > 0 for r in rows[:-1]) and all(b["cells"] > a["cells"] for a, b in zip(rows, rows[1:])),
+            "%s: 6 steps, each marks and refines (%s cells)" % (tag, [r["cells"] for r in rows]))
+    c.check(all(b["eta"] < a["eta"] for a, b in zip(rows, rows[1:])), "%s: eta falls (%s)" % (tag, ["%.3g" % r["eta"] for r in rows]))
+    c.check(all(b["error"] < a["error"] for a, b in zip(rows, rows[1:])), "%s: the energy error falls" % tag)
+    c.check(all(r["eta"] >= r["error"] for r in rows), "%s: eta >= energy error at every step (indices %s)" % (tag, ["%.2f" % (r["eta"] / r["error"]) for r in rows]))
+    c.check(s["cells"] == rows[-1]["cells"] and s["dofs"] == rows[-1]["dofs"] and sum(s["cells_per_rank"]) == s["cells"],
+            "%s: the summary describes the last mesh (%d cells, %d DOFs)" % (tag, s["cells"], s["dofs"]))
+    kkt_ok(tag, s)
+    runs[(ranks, bool(extra))] = s
+    if extra:
+        c.check(any(r["redistributed"] for r in rows[:-1]), "%s: the refined meshes are redistributed" % tag)
+one = runs[(1, False)]
+for key in [(2, False), (2, True)]:
+    other = runs[key]
+    same = [(a["cells"], a["dofs"], a["marked"]) for a in one["adapt"]] == [(b["cells"], b["dofs"], b["marked"]) for b in other["adapt"]]
+    c.check(same, "2 ranks%s: the same adapted meshes as on 1 rank (cells, DOFs, marked cells per step)" % (" redistributed" if key[1] else ""))
+    c.check(abs(other["energy"] - one["energy"]) <= 1e-9 * abs(one["energy"]), "2 ranks%s: energy %.15e, 1 rank %.15e" % (" redistributed" if key[1] else "", other["energy"], one["energy"]))
+
+# The other element, tetrahedra, and PETSc's refine_sbr: the same checks, and the same meshes on 1 and 2 ranks.
+for name, extra in [("manufactured-2d", ["-space", "p1", "-box_faces", "8", "-adapt_steps", "6"]),
+                    ("manufactured-2d", ["-space", "cr", "-box_faces", "8", "-adapt_steps", "4", "-adapt_refinement", "sbr"]),
+                    ("manufactured-3d", ["-space", "cr", "-box_faces", "3", "-adapt_steps", "4"]),
+                    ("manufactured-3d", ["-space", "p1", "-box_faces", "4", "-adapt_steps", "4"])]:
+    tag = "%s %s" % (name, " ".join(extra))
+    _, _, _, s1 = run(scene(name) + extra)
+    _, _, _, s2 = run(scene(name) + extra + ["-adapt_imbalance", "1"], ranks=2)
+    rows = s1["adapt"]
+    c.check(all(b["cells"] > a["cells"] for a, b in zip(rows, rows[1:])) and rows[-1]["eta"] < rows[0]["eta"],
+            "%s: every step refines, eta falls (%s cells, eta %s)" % (tag, [r["cells"] for r in rows], ["%.3g" % r["eta"] for r in rows]))
+    c.check(all(r["eta"] >= r["error"] for r in rows), "%s: eta >= energy error at every step (indices %s)" % (tag, ["%.2f" % (r["eta"] / r["error"]) for r in rows]))
+    same = [(a["cells"], a["dofs"], a["marked"]) for a in rows] == [(b["cells"], b["dofs"], b["marked"]) for b in s2["adapt"]]
+    c.check(same and abs(s2["energy"] - s1["energy"]) <= 1e-9 * abs(s1["energy"]),
+            "%s: the same adapted meshes and energy on 2 ranks, redistributed (%.15e, %.15e)" % (tag, s1["energy"], s2["energy"]))
+    kkt_ok(tag, s2)
+
+# The singular scene: u ~ r^(1/2) next to (1/2, 0).
+for el in ["cr", "p1"]:
+    _, _, _, s = run(scene("stiff-below-h2") + ["-mesh_file", os.path.join(ROOT, "petsc-options", "meshes", "split-bottom.msh"), "-space", el, "-adapt_steps", "10"])
+    rows = s["adapt"][-5:]
+    k = slope([r["dofs"] for r in rows], [r["eta"] for r in rows])
+    c.check(k <= -0.45, "stiff-below-h2 %s: eta ~ DOFs^%.3f over the last 5 steps (<= -0.45)" % (el, k))
+
+# -adapt_tol: stop at the first step with eta below it.
+tol = math.sqrt(one["adapt"][2]["eta"] * one["adapt"][3]["eta"])
+_, _, _, s = run(base + ["-adapt_tol", repr(tol)])
+c.check(len(s["adapt"]) == 4 and s["cells"] == one["adapt"][3]["cells"], "-adapt_tol %.3g stops after step 3 (%d rows)" % (tol, len(s["adapt"])))
+
+# -output: the last mesh.
+try:
+    import h5py
+except ImportError:
+    h5py = None
+c.check(h5py is not None, "h5py can be imported (run/setup installs python3-h5py)")
+with tempfile.TemporaryDirectory() as tmp:
+    out = os.path.join(tmp, "adapt.h5")
+    _, _, _, s = run(base + ["-adapt_steps", "2", "-output", out], ranks=2)
+    if h5py is not None and os.path.exists(out):
+        with h5py.File(out, "r") as f:
+            n = f["/viz/topology/cells"].shape[0]
+        c.check(n == s["cells"], "-output writes the last mesh (%d cells, summary %d)" % (n, s["cells"]))
+    else:
+        c.check(False, "-output wrote %s" % out)
+
+# Bad input.
+for args, message in [(["-adapt_theta", "0"], "-adapt_theta"),
+                      (["-study_levels", "2"], "options -adapt_steps and -study_levels"),
+                      (["-estimate", "none"], "adaptive refinement marks cells by the error estimate")]:
+    rc, out, err, _ = run(base + args, check=False)
+    lines = [l for l in (out + err).splitlines() if l.startswith("signorini: error:")]
+    c.check(rc == 1 and len(lines) == 1 and message in lines[0], "%s: one error line (%s)" % (" ".join(args), lines[0] if lines else "none"))
+c.done()
