@@ -1,7 +1,7 @@
 """`run/bench --peer dolfinx`: signorini against a general FE framework on the paper's scene, whole process.
 
   run/bench --peer dolfinx [--quick] [--ranks P] [--repeat K] [--out DIR]
-            [--peer-elements cr[,p1]] [--peer-n2 1024] [--peer-n3 48]
+            [--peer-elements cr[,p1]] [--peer-n2 1024] [--peer-n3 64]
 
 For every case (paper-5.1 in 2D at --peer-n2, paper-5.1-3d at --peer-n3; --quick: 128 and 16) it runs, K
 times (default 3) and alternately, what a user types,
@@ -109,10 +109,10 @@ def main(bench_args, extra):
     ap = argparse.ArgumentParser(prog="run/bench --peer dolfinx")
     ap.add_argument("--peer-elements", default="cr", help="elements to compare (cr,p1)")
     ap.add_argument("--peer-n2", type=int, default=None, help="2D cells per side (default 1024, --quick 128)")
-    ap.add_argument("--peer-n3", type=int, default=None, help="3D cells per side (default 48, --quick 16)")
+    ap.add_argument("--peer-n3", type=int, default=None, help="3D cells per side (default 64: about as many CR DOFs as 2D N = 1024; --quick 16)")
     args = ap.parse_args(extra)
     n2 = args.peer_n2 or (128 if bench_args.quick else 1024)
-    n3 = args.peer_n3 or (16 if bench_args.quick else 48)
+    n3 = args.peer_n3 or (16 if bench_args.quick else 64)
     dims = [int(d) for d in bench_args.dims.split(",")]
     repeat = bench_args.repeat if bench_args.repeat > 1 else 3
     os.makedirs(bench_args.out, exist_ok=True)
