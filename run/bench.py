@@ -4,6 +4,7 @@ compared with one plain CG + BoomerAMG solve of the same operator measured in th
   run/bench [--dims 2,3] [--elements p1,cr] [--n2 256,512,1024,2048] [--n3 12,24,48,96] [--ranks P]
             [--presets] [--repeat K] [--out DIR] [signorini options...]
   run/bench --quick            # small sizes only (a minute): checks that everything runs
+  run/bench --peer dolfinx     # whole process against dolfinx on the same discrete problem (run/peer.py)
 
 Scenes: paper-5.1 in 2D (N x N squares), paper-5.1-3d in 3D (N x N x N cubes, 6 tetrahedra each).
 Each run's summary JSON and -log_view are kept in DIR (default results/bench). Prints one row per run:
@@ -237,6 +238,7 @@ def main():
     ap.add_argument("--out", default=os.path.join(ROOT, "results", "bench"))
     ap.add_argument("--repeat", type=int, default=1, help="run each case this many times and report medians (times, VI/linear) and the largest memory")
     ap.add_argument("--no-warm-memory", action="store_true", help="do not touch the free memory once before the runs (see warm_memory)")
+    ap.add_argument("--peer", choices=["dolfinx"], help="instead: whole process against dolfinx on the same scene and mesh (run/peer.py: --peer-elements, --peer-n2, --peer-n3)")
     args, extra = ap.parse_known_args()
     if args.repeat < 1:
         ap.error("--repeat: %d is not a positive count" % args.repeat)
@@ -248,6 +250,10 @@ def main():
     sizes = {2: [int(n) for n in args.n2.split(",")], 3: [int(n) for n in args.n3.split(",")]}
     if not args.no_warm_memory:
         warm_memory()
+    if args.peer:
+        import peer
+
+        return peer.main(args, extra)
     rows = []
     print(header(), flush=True)
     for dim in dims:
