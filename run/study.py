@@ -11,7 +11,7 @@
    -reference_space p1|cr) otherwise.
 2. An adaptive run per element from the same first mesh (-adapt_steps K, default: until the DOFs of the
    finest uniform level; -adapt_theta T), its errors against the exact solution or, without one, against
-   an adaptive reference M steps further (default 4; see run/compare.py).
+   an adaptive reference M steps further (default 6; see run/compare.py).
 3. One table of both strategies (compare.csv, compare.json), error and estimate against DOFs and against run
    time (compare-vs-dofs.png, compare-vs-time.png), the last adapted mesh of each element in 2D with its
    indicators and the contact set (adapted-mesh-ELEMENT.png), and when the adaptive run reaches the finest

@@ -195,18 +195,30 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
     stop_ = row.marked == 0; // a zero estimate: nothing to refine
   }
   rows.push_back(row);
-  if (stop_ && !kept_.empty()) PetscCall(ReferenceErrors(m));
-  if (stop_) {
-    cellsPerRank.resize(0);
-    PetscMPIInt size;
-    PetscCallMPI(MPI_Comm_size(comm, &size));
-    cellsPerRank.resize(size);
-    PetscCallMPI(MPI_Allgather(&n, 1, MPIU_INT, cellsPerRank.data(), 1, MPIU_INT, comm));
-    finest = std::move(m);
+  if (!stop_) {
+    prev_ = std::move(m);
+    // The transfer needs the space and u only; the last step of the adaptive run stays whole, as the
+    // run's result, while the reference steps go on.
+    if (step_ != adaptEnd_) PetscCall(SystemDestroy(prev_.sys));
     PetscFunctionReturn(0);
   }
-  prev_ = std::move(m);
-  PetscCall(SystemDestroy(prev_.sys)); // the transfer needs the space and u only
+  // The run's result is the last step of the adaptive run; the steps after it only measured its error.
+  const bool measured = adaptEnd_ >= 0 && step_ > adaptEnd_ && !kept_.empty();
+  finestStep          = measured ? adaptEnd_ : step_;
+  if (measured) {
+    PetscCall(ReferenceErrors(m));
+    PetscCall(m.Destroy());
+    finest           = std::move(kept_[adaptEnd_]);
+    kept_[adaptEnd_] = MeshSolution(); // a moved MeshSolution still holds the handles
+  } else finest = std::move(m);
+  for (MeshSolution &k : kept_) PetscCall(k.Destroy());
+  kept_.clear();
+  parents_.clear();
+  n = finest.space.NumCells();
+  PetscMPIInt size;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  cellsPerRank.assign(size, 0);
+  PetscCallMPI(MPI_Allgather(&n, 1, MPIU_INT, cellsPerRank.data(), 1, MPIU_INT, comm));
   PetscFunctionReturn(0);
 }
 
@@ -214,10 +226,8 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
 // the reference's cells; a redistributed mesh ends the chain (its cells are no longer beside their parents).
 PetscErrorCode AdaptiveRefinement::ReferenceErrors(const MeshSolution &ref)
 {
-  PetscLogDouble        t0;
   std::vector<PetscInt> map(ref.space.NumCells());
   PetscFunctionBeginUser;
-  PetscCall(PetscTime(&t0));
   for (PetscInt c = 0; c < (PetscInt)map.size(); ++c) map[c] = c;
   for (PetscInt k = (PetscInt)kept_.size() - 1; k >= 0 && !rows[k].redistributed; --k) {
     ErrorNorms e;
@@ -225,9 +235,6 @@ PetscErrorCode AdaptiveRefinement::ReferenceErrors(const MeshSolution &ref)
     PetscCall(ErrorAgainstReference(kept_[k].space, kept_[k].u, ref.space, ref.sys, ref.u, map, e));
     rows[k].referenceError = e.energy;
   }
-  for (MeshSolution &k : kept_) PetscCall(k.Destroy());
-  kept_.clear();
-  parents_.clear();
   PetscFunctionReturn(0);
 }
 

@@ -13,7 +13,8 @@
 // is compared with the reference on the reference's cells through the composed parent maps, exactly
 // (ErrorAgainstReference, error.h). A redistribution moves cells away from their parents' rank, so the
 // steps before the last redistribution get no reference error (on one rank there is none): the simple,
-// correct choice rather than migrating every kept solution.
+// correct choice rather than migrating every kept solution. The run's result (summary, -output) is the last
+// step of the adaptive run, not the reference.
 #pragma once
 
 #include "signorini/localrefine.h"
@@ -64,9 +65,12 @@ public:
   PetscErrorCode Next(Step &step, bool &more) override;
   PetscErrorCode Carry(MeshSolution &cur, bool &carried) override;
   PetscErrorCode Solved(MeshSolution &&m) override;
-  MeshSolution          finest;       // the last solution; the caller destroys it
+  // The run's result: the solution of the last step of the adaptive run (rows[finestStep]; reference
+  // steps may follow it); the caller destroys it.
+  MeshSolution          finest;
+  PetscInt              finestStep = 0;
   std::vector<AdaptRow> rows;         // one per mesh solved
-  std::vector<PetscInt> cellsPerRank; // of the last mesh
+  std::vector<PetscInt> cellsPerRank; // of finest's mesh
 
 private:
   PetscErrorCode Refine(); // the marked cells of mesh_, the solution carried to the new mesh_
