@@ -1,6 +1,7 @@
 """Plots of convergence studies (matplotlib, Debian python3-matplotlib). No numerics here: the figures come
 from the study JSON written by `signorini -study_output`."""
 import matplotlib
+import matplotlib.colors
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -132,11 +133,16 @@ def plot_mesh(h5_file, path, title):
         eta = h5["/cell_fields/eta"][:] if "/cell_fields/eta" in h5 else None
         contact = None
         if "/contact/cells" in h5:
-            CX = h5["/contact/vertices"][:]
-            contact = (CX[h5["/contact/cells"][:]], h5["/contact/active"][:])
+            CX, CC, active = h5["/contact/vertices"][:], h5["/contact/cells"][:], h5["/contact/active"][:]
+            if len(active) == len(CX) != len(CC):  # P1: per vertex; a face is in contact where both its ends are
+                active = active[CC].min(axis=1)
+            contact = (CX[CC], active)
     fig, ax = plt.subplots(figsize=(6.4, 5.6))
     if eta is not None:
-        t = ax.tripcolor(X[:, 0], X[:, 1], cells, facecolors=eta, cmap="magma_r", edgecolors="k", linewidth=0.1)
+        # on a log scale: on an adapted mesh a few cells at a singularity would take the whole linear scale
+        top = float(eta.max())
+        norm = matplotlib.colors.LogNorm(vmin=max(float(eta.min()), 1e-4 * top), vmax=top) if top > 0 else None
+        t = ax.tripcolor(X[:, 0], X[:, 1], cells, facecolors=eta, cmap="magma_r", norm=norm, edgecolors="k", linewidth=0.1)
         fig.colorbar(t, ax=ax, shrink=0.85, label="indicator eta_T")
     else:
         ax.triplot(X[:, 0], X[:, 1], cells, color="k", lw=0.2)
