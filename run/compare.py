@@ -110,6 +110,17 @@ def table(rows):
     return "\n".join(lines)
 
 
+def notes(rows):
+    """What the table cannot show: adaptive steps without an error (before a redistribution on several ranks)."""
+    out = []
+    for element in dict.fromkeys(r["element"] for r in rows):
+        missing = [r["step"] for r in rows if r["strategy"] == "adaptive" and r["element"] == element and r["error"] is None and not r["reference_step"]]
+        if missing:
+            out.append("%s: no adaptive reference error for steps %d to %d: a later mesh was redistributed, so a cell's parent may be on another rank"
+                       % (element, missing[0], missing[-1]))
+    return out
+
+
 def reached(rows, element, key):
     """(target, uniform seconds, adaptive seconds or None, adaptive DOFs): the first adaptive step whose `key`
     (error or eta) is at most that of the finest uniform level, and when."""

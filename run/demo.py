@@ -56,7 +56,7 @@ def adaptive(study, options, out, ranks):
                                                    "%.4e" % r["error"] if r["error"] is not None else "-", "%.2f" % r["efficiency"] if r["efficiency"] else "-", r["seconds"]))
     print("(error: energy norm against the last step r, the adaptive reference; time: the run so far; uniform: energy error against P1 N = 512, time of the level's run)")
     rows = compare.uniform_rows(study) + rows
-    for line in compare.reach_lines(rows):
+    for line in compare.notes(rows) + compare.reach_lines(rows):
         print(line)
     compare.write(rows, out)
     compare.pictures(rows, summaries, out, "paper-5.1")

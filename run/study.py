@@ -95,7 +95,7 @@ def main():
     rows = compare.uniform_rows(study) + rows
     print("\nuniform against adaptive refinement (error: energy norm; time: run time up to that mesh; r: adaptive step for the reference only)")
     print(compare.table(rows))
-    for line in compare.reach_lines(rows):
+    for line in compare.notes(rows) + compare.reach_lines(rows):
         print(line)
     compare.write(rows, out)
     compare.pictures(rows, summaries, out, study["scene"])

@@ -43,6 +43,12 @@ std::string AdaptTable(const std::vector<AdaptRow> &rows)
     if (last) o << "\n";
     else o << Format(" %8.3f %8.3f %8s %8.3f %8d\n", r.markSeconds, r.refineSeconds, r.redistributed ? Format("%.3f", r.redistributeSeconds).c_str() : "-", r.transferSeconds, (int)r.marked);
   }
+  // the steps the reference cannot reach (AdaptiveRefinement::ReferenceErrors)
+  for (size_t k = rows.size() - 1; reference && k-- > 0;)
+    if (rows[k].redistributed) {
+      o << Format("  no ref. error for steps 0 to %d: the mesh after step %d was redistributed, so a cell's parent may be on another rank\n", (int)k, (int)k);
+      break;
+    }
   return o.str();
 }
 
