@@ -220,7 +220,8 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
   for (MeshSolution &k : kept_) PetscCall(k.Destroy());
   kept_.clear();
   parents_.clear();
-  n = finest.space.NumCells();
+  n    = finest.space.NumCells();
+  comm = PetscObjectComm((PetscObject)finest.u); // not m's, which may be gone
   PetscMPIInt size;
   PetscCallMPI(MPI_Comm_size(comm, &size));
   cellsPerRank.assign(size, 0);
