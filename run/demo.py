@@ -3,9 +3,14 @@
 1. paper-5.1 solved with P1 and CR for N = 2 ... 64 and compared with a P1 reference on N = 512, set up as the
    paper did: "\\" diagonals, the load integrated with the one-point centroid rule in every solve (the
    reference included), errors integrated exactly on the fine mesh, H1 = full norm sqrt(L2^2 + |.|_1,h^2).
-   Our 24 numbers are printed beside the paper's with the relative difference of each.
+   Our 24 numbers are printed beside the paper's with the relative difference of each, and beside them the
+   estimate eta of the energy error and the efficiency index eta / (energy error against the reference).
 2. The same study with the accurate load rule, for comparison.
-3. Tables as CSV/JSON and plots (error against h, error against run time) under results/.
+3. The paper's scene by adaptive refinement (both elements, centroid rule, from N = 2 until the DOFs of
+   N = 64), its errors against an adaptive reference a few steps further, and when it reaches the finest
+   uniform error and estimate (run/compare.py).
+4. Tables as CSV/JSON and plots (error against h, error and estimate against DOFs and run time, the adapted
+   meshes) under results/.
 Extra arguments go to signorini (e.g. --ranks 2 runs on 2 MPI ranks)."""
 import argparse
 import csv
@@ -39,6 +44,24 @@ def slope(rows, element, norm):
     return math.log(e0 / e1) / math.log(rs[0]["h"] / rs[-1]["h"])
 
 
+def adaptive(study, options, out, ranks):
+    """The adaptive runs of both elements beside the uniform study: their rows and when they reach the
+    finest uniform error and estimate; the comparison files and plots in `out`."""
+    import compare
+
+    rows, summaries = compare.adaptive("paper-5.1", options, study, out, ranks)
+    print("%4s %5s %8s %12s %12s %6s %8s" % ("elem", "step", "DOFs", "eta", "error", "eta/E", "time[s]"))
+    for r in rows:
+        print("%4s %4d%s %8d %12.4e %12s %6s %8.3f" % (r["element"], r["step"], "r" if r["reference_step"] else " ", r["dofs"], r["eta"],
+                                                   "%.4e" % r["error"] if r["error"] is not None else "-", "%.2f" % r["efficiency"] if r["efficiency"] else "-", r["seconds"]))
+    print("(error: energy norm against the last step r, the adaptive reference; time: the run so far; uniform: energy error against P1 N = 512, time of the level's run)")
+    rows = compare.uniform_rows(study) + rows
+    for line in compare.notes(rows) + compare.reach_lines(rows):
+        print(line)
+    compare.write(rows, out)
+    compare.pictures(rows, summaries, out, "paper-5.1")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--ranks", type=int, default=1)
@@ -52,7 +75,7 @@ def main():
 
     paper = paper_table()
     print("\nTable 5.1 reproduced (ours | paper | relative difference):")
-    print("%4s %4s  %-38s  %-38s" % ("elem", "N", "L2 error", "H1 error (full norm)"))
+    print("%4s %4s  %-38s  %-38s  %-11s %5s" % ("elem", "N", "L2 error", "H1 error (full norm)", "eta", "eta/E"))
     worst = 0.0
     for r in study["rows"]:
         key = (r["element"], r["N"])
@@ -64,7 +87,10 @@ def main():
             d = abs(o - p) / p
             worst = max(worst, d)
             cells.append("%.8f | %.8f | %.1e" % (o, p, d))
-        print("%4s %4d  %-38s  %-38s" % (r["element"], r["N"], cells[0], cells[1]))
+        # the estimate of the energy error and its efficiency index against the reference's energy error
+        est = r.get("estimate", {})
+        index = est["eta"] / r["error_reference"]["energy"] if "eta" in est else None
+        print("%4s %4d  %-38s  %-38s  %-11s %5s" % (r["element"], r["N"], cells[0], cells[1], "%.5e" % est["eta"] if est else "-", "%.2f" % index if index else "-"))
     compared = sum(1 for r in study["rows"] if (r["element"], r["N"]) in paper)
     ok = compared == 12 and worst <= 1e-4
     print("%d entries compared, largest relative difference %.1e: %s" % (2 * compared, worst, "all agree to 1e-4" if ok else "MISMATCH"))
@@ -74,10 +100,16 @@ def main():
 
     print("\n== the same study with the accurate load rule (degree-4 quadrature), for comparison")
     out2 = os.path.join(ROOT, "results", "paper-5.1-accurate")
-    run_study("paper-5.1", base, out2, args.ranks)
+    run_study("paper-5.1", base, out2, args.ranks, quiet=True)
+    print("(table in %s/study.csv)" % out2)
+
+    print("\n== paper-5.1 by adaptive refinement (centroid rule, from N = 2 to the DOFs of N = 64)")
+    adaptive(study, ["-box_faces", "2", "-load_quadrature", "centroid"] + extra, out1, args.ranks)
     print("\nTables and plots: %s/ and %s/" % (out1, out2))
     print("  study.csv, study.json: the tables; error-vs-h.png: convergence; error-vs-time.png: error against run time;")
-    print("  solution.png: u_h on N = 64; contact.png: u_h and the contact pressure along Gamma_C with the critical points")
+    print("  solution.png: u_h on N = 64; contact.png: u_h and the contact pressure along Gamma_C with the critical points;")
+    print("  compare.csv, compare.json, compare-vs-dofs.png, compare-vs-time.png: uniform against adaptive refinement;")
+    print("  adapted-mesh-p1.png, adapted-mesh-cr.png: the last adapted meshes with their indicators and the contact set")
     sys.exit(0 if ok else 1)
 
 

@@ -1,6 +1,7 @@
 """Plots of convergence studies (matplotlib, Debian python3-matplotlib). No numerics here: the figures come
 from the study JSON written by `signorini -study_output`."""
 import matplotlib
+import matplotlib.colors
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -62,6 +63,37 @@ def plot_work_precision(study, path, title):
     _finish(fig, ax, path, title, "run time to solution [s] (mesh, set-up, assembly, solve)", "error")
 
 
+STRATEGY_COLORS = {"uniform": "tab:blue", "adaptive": "tab:red"}
+
+
+def plot_compare(rows, path, title, x, xlabel):
+    """Uniform against adaptive refinement (rows of run/compare.py): per element one axes with the energy
+    error (solid) and the estimate eta (dashed) of both strategies against x (DOFs or run time). The
+    adaptive steps solved only for the reference are left out."""
+    elements = list(dict.fromkeys(r["element"] for r in rows))
+    fig, axes = plt.subplots(1, len(elements), figsize=(5.6 * len(elements), 4.8), squeeze=False)
+    for ax, element in zip(axes[0], elements):
+        for strategy, color in STRATEGY_COLORS.items():
+            rs = [r for r in rows if r["element"] == element and r["strategy"] == strategy and not r["reference_step"]]
+            m = MARKERS.get(element, "^")
+            xs = [max(r[x], 1e-6) for r in rs]
+            err = [(xv, r["error"]) for xv, r in zip(xs, rs) if r["error"] is not None]
+            if err:
+                against = rs[-1]["error_against"] or ""
+                ax.loglog(*zip(*err), m + "-", color=color, ms=3, label="%s: error (solid, against %s)" % (strategy, against))
+            eta = [(xv, r["eta"]) for xv, r in zip(xs, rs) if r["eta"] is not None]
+            if eta:
+                ax.loglog(*zip(*eta), m + "--", color=color, ms=3, mfc="none", label="%s: estimate eta (dashed)" % strategy)
+        ax.set_title("%s, %s" % (title, NAMES.get(element, element)), fontsize=10)
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel("energy error / estimate")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def plot_solution(h5_files, path, title):
     """u_h over a 2D domain, one panel per element (vertex values from the HDF5 output). Returns False in 3D."""
     import h5py
@@ -101,11 +133,16 @@ def plot_mesh(h5_file, path, title):
         eta = h5["/cell_fields/eta"][:] if "/cell_fields/eta" in h5 else None
         contact = None
         if "/contact/cells" in h5:
-            CX = h5["/contact/vertices"][:]
-            contact = (CX[h5["/contact/cells"][:]], h5["/contact/active"][:])
+            CX, CC, active = h5["/contact/vertices"][:], h5["/contact/cells"][:], h5["/contact/active"][:]
+            if len(active) == len(CX) != len(CC):  # P1: per vertex; a face is in contact where both its ends are
+                active = active[CC].min(axis=1)
+            contact = (CX[CC], active)
     fig, ax = plt.subplots(figsize=(6.4, 5.6))
     if eta is not None:
-        t = ax.tripcolor(X[:, 0], X[:, 1], cells, facecolors=eta, cmap="magma_r", edgecolors="k", linewidth=0.1)
+        # on a log scale: on an adapted mesh a few cells at a singularity would take the whole linear scale
+        top = float(eta.max())
+        norm = matplotlib.colors.LogNorm(vmin=max(float(eta.min()), 1e-4 * top), vmax=top) if top > 0 else None
+        t = ax.tripcolor(X[:, 0], X[:, 1], cells, facecolors=eta, cmap="magma_r", norm=norm, edgecolors="k", linewidth=0.1)
         fig.colorbar(t, ax=ax, shrink=0.85, label="indicator eta_T")
     else:
         ax.triplot(X[:, 0], X[:, 1], cells, color="k", lw=0.2)

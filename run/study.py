@@ -1,19 +1,28 @@
-"""Convergence study of a scene with both elements: one table of errors, rates, iterations, times and memory,
-written as CSV and JSON, with two plots (error against h, and error against run time).
+"""Uniform against adaptive refinement of a scene, with both elements (or those of -study_spaces).
 
-  run/study SCENE [--ranks P] [--out DIR] [signorini options...]
+  run/study SCENE [--ranks P] [--out DIR] [--adapt-steps K] [--theta T] [--reference-steps M] [signorini options...]
 
   run/study manufactured-2d -box_faces 4 -study_levels 5
   run/study paper-5.1 -box_faces 2 -study_levels 6 -reference_refine 3 -load_quadrature centroid
 
-Against the exact solution when the scene has one; against a reference solution (-reference_refine m,
--reference_space p1|cr) otherwise. Extra options go to signorini (see signorini -help)."""
+1. The convergence study (uniform refinement, -study_levels): errors, rates, iterations, times and memory
+   (study.csv, study.json, error-vs-h.png, error-vs-time.png, solution.png, contact.png). Errors against the
+   exact solution when the scene has one; against a reference solution (-reference_refine m,
+   -reference_space p1|cr) otherwise.
+2. An adaptive run per element from the same first mesh (-adapt_steps K, default: until the DOFs of the
+   finest uniform level; -adapt_theta T), its errors against the exact solution or, without one, against
+   an adaptive reference M steps further (default 6; see run/compare.py).
+3. One table of both strategies (compare.csv, compare.json), error and estimate against DOFs and against run
+   time (compare-vs-dofs.png, compare-vs-time.png), the last adapted mesh of each element in 2D with its
+   indicators and the contact set (adapted-mesh-ELEMENT.png), and when the adaptive run reaches the finest
+   uniform error. Extra options go to signorini (see signorini -help)."""
 import argparse
 import csv
 import json
 import os
 import sys
 
+import compare
 import launch
 from launch import ROOT
 
@@ -75,9 +84,21 @@ def main():
     ap.add_argument("scene", help="options file in petsc-options/")
     ap.add_argument("--ranks", type=int, default=1)
     ap.add_argument("--out", default=None, help="output folder (default results/SCENE)")
+    ap.add_argument("--adapt-steps", type=int, default=None, help="adaptive steps (default: until the DOFs of the finest uniform level)")
+    ap.add_argument("--theta", type=float, default=None, help="Doerfler parameter of the adaptive run (-adapt_theta)")
+    ap.add_argument("--reference-steps", type=int, default=None,
+                    help="steps beyond the adaptive run for its reference (default: none with an exact solution, else %d)" % compare.REFERENCE_STEPS)
     args, options = ap.parse_known_args()
     out = args.out or os.path.join(ROOT, "results", args.scene)
-    run_study(args.scene, options, out, args.ranks)
+    study = run_study(args.scene, options, out, args.ranks)
+    rows, summaries = compare.adaptive(args.scene, options, study, out, args.ranks, args.adapt_steps, args.theta, args.reference_steps)
+    rows = compare.uniform_rows(study) + rows
+    print("\nuniform against adaptive refinement (error: energy norm; time: run time up to that mesh; r: adaptive step for the reference only)")
+    print(compare.table(rows))
+    for line in compare.notes(rows) + compare.reach_lines(rows):
+        print(line)
+    compare.write(rows, out)
+    compare.pictures(rows, summaries, out, study["scene"])
     print("wrote in %s: %s" % (out, ", ".join(sorted(f for f in os.listdir(out) if f.endswith((".json", ".csv", ".png"))))))
 
 

@@ -17,27 +17,38 @@ PetscErrorCode AdaptOptionsFromCommandLine(MPI_Comm comm, AdaptOptions &o)
   PetscCall(OptionInt(PetscOptionsObject, "-adapt_steps", "Adaptive refinements: solve, estimate, mark, refine this many times (0: none)", o.steps, 0, 1000));
   PetscCall(OptionReal(PetscOptionsObject, "-adapt_theta", "Doerfler parameter: the marked cells carry this share of the squared estimate", o.theta, 1e-6, 1));
   PetscCall(OptionReal(PetscOptionsObject, "-adapt_tol", "Stop refining once the estimate eta is below this", o.tol, 0));
+  PetscCall(OptionInt(PetscOptionsObject, "-adapt_max_dofs", "Stop refining once a mesh has this many DOFs (0: no limit)", o.maxDofs, 0, PETSC_MAX_INT));
   PetscCall(OptionReal(PetscOptionsObject, "-adapt_imbalance", "Redistribute the refined mesh when max cells per rank / mean exceeds this", o.imbalance, 1));
   PetscInt how = (PetscInt)o.refinement;
   PetscCall(OptionEList(PetscOptionsObject, "-adapt_refinement", "Refinement of the marked cells: bisection of marked edges (2D and 3D) or PETSc's refine_sbr (2D)", {"bisection", "sbr"}, how));
   o.refinement = (LocalRefinement)how;
+  PetscCall(OptionInt(PetscOptionsObject, "-adapt_reference_steps", "Go on this many steps beyond the adaptive run and measure every earlier step's energy error against the last solution (0: none)", o.referenceSteps, 0, 100));
   PetscOptionsEnd();
   PetscFunctionReturn(0);
 }
 
+static std::string ErrorCell(PetscReal e) { return e >= 0 ? Format("%12.4e", (double)e) : Format("%12s", "-"); }
+
 std::string AdaptTable(const std::vector<AdaptRow> &rows)
 {
   std::ostringstream o;
-  o << "  adaptive refinement (overhead: from the step's solution to the next mesh; times in s):\n";
-  o << Format("  %4s %9s %9s %12s %12s %6s %6s %8s %8s %8s %8s %8s %8s %8s\n", "step", "cells", "DOFs", "eta", "error", "Newton", "KSP", "solve", "estimate", "mark", "refine", "redist", "transfer", "marked");
+  const bool reference = std::any_of(rows.begin(), rows.end(), [](const AdaptRow &r) { return r.reference; });
+  o << "  adaptive refinement (run: wall time up to the step's estimate; overhead: from the step's solution to the next mesh; times in s";
+  o << (reference ? "; r: a step for the reference only, whose last solution the ref. error is measured against):\n" : "):\n");
+  o << Format("  %5s %9s %9s %12s %12s %12s %6s %6s %8s %8s %8s %8s %8s %8s %8s %8s %8s\n", "step", "cells", "DOFs", "eta", "error", "ref. error", "Newton", "KSP", "run", "setup", "solve", "estimate", "mark", "refine", "redist", "transfer", "marked");
   for (size_t k = 0; k < rows.size(); ++k) {
     const AdaptRow &r   = rows[k];
     const bool      last = k + 1 == rows.size();
-    const std::string err = r.error >= 0 ? Format("%12.4e", (double)r.error) : Format("%12s", "-");
-    o << Format("  %4d %9d %9d %12.4e %s %6d %6d %8.3f %8.3f", (int)k, (int)r.cells, (int)r.dofs, (double)r.eta, err.c_str(), (int)r.newtonIts, (int)r.kspIts, r.solveSeconds, r.estimateSeconds);
+    o << Format("  %4d%s %9d %9d %12.4e %s %s %6d %6d %8.3f %8.3f %8.3f %8.3f", (int)k, r.reference ? "r" : " ", (int)r.cells, (int)r.dofs, (double)r.eta, ErrorCell(r.error).c_str(), ErrorCell(r.referenceError).c_str(), (int)r.newtonIts, (int)r.kspIts, r.runSeconds, r.setupSeconds, r.solveSeconds, r.estimateSeconds);
     if (last) o << "\n";
     else o << Format(" %8.3f %8.3f %8s %8.3f %8d\n", r.markSeconds, r.refineSeconds, r.redistributed ? Format("%.3f", r.redistributeSeconds).c_str() : "-", r.transferSeconds, (int)r.marked);
   }
+  // the steps the reference cannot reach (AdaptiveRefinement::ReferenceErrors)
+  for (size_t k = rows.size() - 1; reference && k-- > 0;)
+    if (rows[k].redistributed) {
+      o << Format("  no ref. error for steps 0 to %d: the mesh after step %d was redistributed, so a cell's parent may be on another rank\n", (int)k, (int)k);
+      break;
+    }
   return o.str();
 }
 
@@ -61,6 +72,7 @@ AdaptiveRefinement::AdaptiveRefinement(DM mesh, const Problem &problem, const Pi
 AdaptiveRefinement::~AdaptiveRefinement()
 {
   (void)prev_.Destroy(); // left over only when the run ended with an error
+  for (MeshSolution &k : kept_) (void)k.Destroy();
   (void)DMDestroy(&mesh_);
 }
 
@@ -69,6 +81,7 @@ PetscErrorCode AdaptiveRefinement::Next(Step &step, bool &more)
   PetscFunctionBeginUser;
   more = !stop_;
   if (!more) PetscFunctionReturn(0);
+  if (step_ < 0) PetscCall(PetscTime(&start_));
   if (++step_ > 0) PetscCall(Refine());
   step = Step{mesh_, options_};
   PetscFunctionReturn(0);
@@ -94,7 +107,11 @@ PetscErrorCode AdaptiveRefinement::Refine()
   }
   PetscCall(EvaluateOnCells(prev_.space, prev_.u, lowerH, fine, parent, carried_));
   PetscCall(VecDestroy(&lowerH));
-  PetscCall(prev_.Destroy());
+  if (adapt_.referenceSteps > 0) { // kept for the errors against the reference
+    kept_.push_back(std::move(prev_));
+    parents_.resize(step_);
+    parents_.push_back(std::move(parent));
+  } else PetscCall(prev_.Destroy());
   prev_ = MeshSolution();
   PetscCall(DMDestroy(&mesh_));
   mesh_ = fine;
@@ -152,38 +169,79 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
   AdaptRow               row;
   std::vector<PetscReal> eta2;
   PetscInt               n = m.space.NumCells();
+  PetscLogDouble         now, t0;
   PetscFunctionBeginUser;
+  PetscCall(PetscTime(&now));
+  row.runSeconds = now - start_ - excluded_;
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &row.runSeconds, 1, MPI_DOUBLE, MPI_MAX, comm));
   PetscCallMPI(MPI_Allreduce(&n, &row.cells, 1, MPIU_INT, MPI_SUM, comm));
   row.dofs         = m.space.numGlobal;
   row.newtonIts    = m.result.newtonIts;
   row.kspIts       = m.result.kspIts;
+  row.setupSeconds = m.setupSeconds;
   row.solveSeconds = m.result.solveSeconds;
   if (problem_.HasExact()) {
     ErrorNorms e;
+    PetscCall(PetscTime(&t0));
     PetscCall(ErrorAgainstExact(m.space, problem_, m.sys, m.u, errorDegree_, e));
     row.error = e.energy;
+    PetscCall(PetscTime(&now));
+    excluded_ += now - t0;
   }
   PetscCall(indicators_(m, eta2, row.eta, row.estimateSeconds));
-  stop_ = step_ >= adapt_.steps || row.eta < adapt_.tol;
+  // The adaptive run proper ends after -adapt_steps, below -adapt_tol or at -adapt_max_dofs; the
+  // reference steps follow it.
+  if (adaptEnd_ < 0 && (step_ >= adapt_.steps || row.eta < adapt_.tol || (adapt_.maxDofs > 0 && row.dofs >= adapt_.maxDofs))) adaptEnd_ = step_;
+  row.reference = adaptEnd_ >= 0 && step_ > adaptEnd_;
+  stop_         = adaptEnd_ >= 0 && step_ >= adaptEnd_ + adapt_.referenceSteps;
   if (!stop_) {
-    PetscLogDouble t0;
     PetscCall(PetscTime(&t0));
     PetscCall(MarkDoerfler(comm, eta2, adapt_.theta, marked_, &row.marked));
     PetscCall(SecondsSince(comm, t0, &row.markSeconds));
     stop_ = row.marked == 0; // a zero estimate: nothing to refine
   }
   rows.push_back(row);
-  if (stop_) {
-    cellsPerRank.resize(0);
-    PetscMPIInt size;
-    PetscCallMPI(MPI_Comm_size(comm, &size));
-    cellsPerRank.resize(size);
-    PetscCallMPI(MPI_Allgather(&n, 1, MPIU_INT, cellsPerRank.data(), 1, MPIU_INT, comm));
-    finest = std::move(m);
+  if (!stop_) {
+    prev_ = std::move(m);
+    // The transfer needs the space and u only; the last step of the adaptive run stays whole, as the
+    // run's result, while the reference steps go on.
+    if (step_ != adaptEnd_) PetscCall(SystemDestroy(prev_.sys));
     PetscFunctionReturn(0);
   }
-  prev_ = std::move(m);
-  PetscCall(SystemDestroy(prev_.sys)); // the transfer needs the space and u only
+  // The run's result is the last step of the adaptive run; the steps after it only measured its error.
+  const bool measured = adaptEnd_ >= 0 && step_ > adaptEnd_ && !kept_.empty();
+  finestStep          = measured ? adaptEnd_ : step_;
+  if (measured) {
+    PetscCall(ReferenceErrors(m));
+    PetscCall(m.Destroy());
+    finest           = std::move(kept_[adaptEnd_]);
+    kept_[adaptEnd_] = MeshSolution(); // a moved MeshSolution still holds the handles
+  } else finest = std::move(m);
+  for (MeshSolution &k : kept_) PetscCall(k.Destroy());
+  kept_.clear();
+  parents_.clear();
+  n    = finest.space.NumCells();
+  comm = PetscObjectComm((PetscObject)finest.u); // not m's, which may be gone
+  PetscMPIInt size;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  cellsPerRank.assign(size, 0);
+  PetscCallMPI(MPI_Allgather(&n, 1, MPIU_INT, cellsPerRank.data(), 1, MPIU_INT, comm));
+  PetscFunctionReturn(0);
+}
+
+// Every kept step against the last solution, through the parent maps composed step by step down from
+// the reference's cells; a redistributed mesh ends the chain (its cells are no longer beside their parents).
+PetscErrorCode AdaptiveRefinement::ReferenceErrors(const MeshSolution &ref)
+{
+  std::vector<PetscInt> map(ref.space.NumCells());
+  PetscFunctionBeginUser;
+  for (PetscInt c = 0; c < (PetscInt)map.size(); ++c) map[c] = c;
+  for (PetscInt k = (PetscInt)kept_.size() - 1; k >= 0 && !rows[k].redistributed; --k) {
+    ErrorNorms e;
+    for (PetscInt &c : map) c = parents_[k + 1][c];
+    PetscCall(ErrorAgainstReference(kept_[k].space, kept_[k].u, ref.space, ref.sys, ref.u, map, e));
+    rows[k].referenceError = e.energy;
+  }
   PetscFunctionReturn(0);
 }
 

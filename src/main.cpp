@@ -142,7 +142,7 @@ static PetscErrorCode Run(MPI_Comm comm)
     PetscCall(SolveMeshes(s.problem, strategy));
     fine = std::move(strategy.finest);
     report.adapt          = strategy.rows;
-    meshInfo.cells        = strategy.rows.back().cells;
+    meshInfo.cells        = strategy.rows[strategy.finestStep].cells;
     meshInfo.cellsPerRank = strategy.cellsPerRank;
     if (!s.output.file.empty()) PetscCall(OutputBegin(fine.space, s.output, output));
   } else if (nested) {

@@ -156,12 +156,12 @@ PetscErrorCode ConvergenceStudy::Row(MeshSolution &&m)
   StudyRow       r;
   PetscLogDouble t1;
   PetscFunctionBeginUser;
+  PetscCall(PetscTime(&t1)); // the row's run time ends with its solve and estimate, not with the profile files
   if (l == o_.levels - 1 && !o_.profiles.empty()) {
     PetscCall(WriteSolution(m.space, problem_, m.sys, m.u, ProfileOutput(o_.profiles, e, problem_)));
     if (problem_.HasContact()) PetscCall(WriteContactProfile(m.space, problem_, m.sys, m.u, ProfileBase(o_.profiles, e) + "-contact.csv"));
   }
   PetscCall(SystemDestroy(m.sys)); // the rows and the reference need the space, u and sys.kappa only (kept)
-  PetscCall(PetscTime(&t1));
   r.solve        = m.result;
   r.estimate     = std::move(m.estimate);
   std::vector<PetscReal>().swap(r.estimate.cellEta2);

@@ -3,9 +3,18 @@
 // cell indicators (mark.h), the marked cells are refined conformingly (localrefine.h), the solution is
 // evaluated on the new cells with its active set (transfer.h) and, if the load has become unbalanced, the
 // new mesh is redistributed with those values; they are the initial guess of the next solve (nested
-// iteration across the adaptive steps). The run stops after the last step, once eta < -adapt_tol, or
-// when nothing is left to mark. Every step is a row: the mesh, the estimate, the error where the exact
+// iteration across the adaptive steps). The run stops after the last step, once eta < -adapt_tol or the
+// DOFs reach -adapt_max_dofs, or when nothing is left to mark. Every step is a row: the mesh, the estimate, the error where the exact
 // solution is known, the solve, and the overhead of going on to the next mesh.
+//
+// Error against an adaptive reference (-adapt_reference_steps m): for scenes without an exact solution the
+// run goes on for m more steps, and the solution of the last one is the reference of all earlier steps.
+// The adapted meshes are nested (every cell of step k+1 lies in a cell of step k), so each kept solution
+// is compared with the reference on the reference's cells through the composed parent maps, exactly
+// (ErrorAgainstReference, error.h). A redistribution moves cells away from their parents' rank, so the
+// steps before the last redistribution get no reference error (on one rank there is none): the simple,
+// correct choice rather than migrating every kept solution. The run's result (summary, -output) is the last
+// step of the adaptive run, not the reference.
 #pragma once
 
 #include "signorini/localrefine.h"
@@ -18,10 +27,12 @@ struct AdaptOptions {
   PetscInt  steps     = 0;   // -adapt_steps: refinements (0: no adaptive refinement)
   PetscReal theta     = 0.5; // -adapt_theta: Doerfler parameter (mark.h)
   PetscReal tol       = 0;   // -adapt_tol: stop once eta < tol
+  PetscInt  maxDofs   = 0;   // -adapt_max_dofs: stop once a mesh has this many DOFs (0: no limit)
   PetscReal imbalance = 1.2; // -adapt_imbalance: redistribute when max cells per rank / mean exceeds it
   // -adapt_refinement: bisection (localrefine.h, 2D and 3D) or sbr (PETSc's refine_sbr transform, 2D);
   // bisection by default: at 131 k triangles refine_sbr took 3.1 s, six times the next solve.
   LocalRefinement refinement = LocalRefinement::Bisection;
+  PetscInt  referenceSteps = 0; // -adapt_reference_steps: further steps whose last solution is the reference
 };
 PetscErrorCode AdaptOptionsFromCommandLine(MPI_Comm comm, AdaptOptions &o);
 
@@ -29,9 +40,14 @@ PetscErrorCode AdaptOptionsFromCommandLine(MPI_Comm comm, AdaptOptions &o);
 // what it took to go from this mesh's solution to the next mesh and its initial guess.
 struct AdaptRow {
   PetscInt  cells = 0, dofs = 0, newtonIts = 0, kspIts = 0, marked = 0;
-  PetscReal eta = 0, error = -1; // error: against the exact solution, broken H1 seminorm (-1: not known)
-  double    solveSeconds = 0, estimateSeconds = 0, markSeconds = 0, refineSeconds = 0, redistributeSeconds = 0, transferSeconds = 0;
+  PetscReal eta = 0, error = -1; // error: against the exact solution, energy norm (-1: not known)
+  PetscReal referenceError = -1; // energy error against the adaptive reference (-1: none)
+  double    setupSeconds = 0, solveSeconds = 0, estimateSeconds = 0, markSeconds = 0, refineSeconds = 0, redistributeSeconds = 0, transferSeconds = 0;
+  // Wall time of the run from the first mesh up to this step's solution and estimate: the set-up, solve
+  // and estimate of every step so far and the overhead of the steps before (not the error computations).
+  double    runSeconds = 0;
   bool      redistributed = false; // the next mesh was redistributed
+  bool      reference = false;     // a step beyond the adaptive run, solved for the reference only
 };
 // The rows as a table for the summary printed after the run.
 std::string AdaptTable(const std::vector<AdaptRow> &rows);
@@ -49,12 +65,16 @@ public:
   PetscErrorCode Next(Step &step, bool &more) override;
   PetscErrorCode Carry(MeshSolution &cur, bool &carried) override;
   PetscErrorCode Solved(MeshSolution &&m) override;
-  MeshSolution          finest;       // the last solution; the caller destroys it
+  // The run's result: the solution of the last step of the adaptive run (rows[finestStep]; reference
+  // steps may follow it); the caller destroys it.
+  MeshSolution          finest;
+  PetscInt              finestStep = 0;
   std::vector<AdaptRow> rows;         // one per mesh solved
-  std::vector<PetscInt> cellsPerRank; // of the last mesh
+  std::vector<PetscInt> cellsPerRank; // of finest's mesh
 
 private:
   PetscErrorCode Refine(); // the marked cells of mesh_, the solution carried to the new mesh_
+  PetscErrorCode ReferenceErrors(const MeshSolution &ref); // of the kept solutions (-adapt_reference_steps)
 
   DM                mesh_; // the mesh of the step under way
   const Problem    &problem_;
@@ -63,7 +83,12 @@ private:
   PetscInt          errorDegree_;
   Indicators        indicators_;
   PetscInt          step_ = -1;
+  PetscInt          adaptEnd_ = -1; // the last step of the adaptive run proper, once known
   bool              stop_ = false;
+  PetscLogDouble    start_ = 0;     // the first Next
+  double            excluded_ = 0;  // seconds of error computations, not run time
+  std::vector<MeshSolution>          kept_;    // with reference steps: every step's space and u
+  std::vector<std::vector<PetscInt>> parents_; // parents_[k]: cell of step k - 1 containing each cell of step k
   MeshSolution      prev_;    // the solution of mesh_ until it is carried
   std::vector<char> marked_;  // the cells of mesh_ to refine
   CellValues        carried_; // prev_ on the cells of the new mesh

@@ -1,0 +1,87 @@
+"""Uniform against adaptive refinement (run/study, run/compare.py) and the error against an adaptive reference
+(-adapt_reference_steps):
+  - on manufactured-2d (exact solution known) the energy error of each step against the reference, the
+    solution m steps further, approaches the exact energy error: within 10 % for the steps at least 6 steps
+    before the reference (an independent computation: the exact error by quadrature against u), and the
+    relative gap shrinks with the distance to the reference; the run's result is the last step of the
+    adaptive run, not the reference;
+  - on 2 ranks the same meshes give the same reference errors (1e-8 relative) for the steps after the last
+    redistribution, and none for the steps before it;
+  - run/study on a small scene writes compare.csv/.json with both strategies and both elements and their
+    fields, the two comparison plots and the adapted meshes; the adaptive run stops at the DOFs of the finest
+    uniform level; without an exact solution the adaptive errors are against the adaptive reference."""
+import csv
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+from harness import ENV, ROOT, Checker, run, scene
+
+c = Checker()
+K, M = 8, 6
+base = scene("manufactured-2d") + ["-box_faces", "4", "-adapt_steps", str(K), "-adapt_reference_steps", str(M)]
+
+one = {}
+for element in ["p1", "cr"]:
+    _, _, _, s = run(base + ["-space", element])
+    rows = one[element] = s["adapt"]
+    c.check(len(rows) == K + M + 1 and [r["reference_step"] for r in rows] == [False] * (K + 1) + [True] * M,
+            "%s: %d adaptive steps, then %d reference steps" % (element, K + 1, M))
+    c.check(s["dofs"] == rows[K]["dofs"] and s["cells"] == rows[K]["cells"] and abs(s["error"]["energy"] - rows[K]["error"]) <= 1e-12 * rows[K]["error"],
+            "%s: the run's result is step %d (%d DOFs), not the reference" % (element, K, s["dofs"]))
+    c.check(rows[-1]["error_reference"] is None and all(r["error_reference"] is not None for r in rows[:-1]), "%s: every step but the reference has a reference error" % element)
+    gaps = [abs(r["error_reference"] - r["error"]) / r["error"] for r in rows[:-1]]
+    far = gaps[:len(rows) - 1 - M]
+    c.check(max(far) <= 0.10, "%s: steps 0..%d (>= %d steps before the reference): reference error within %.1f %% of the exact error" % (element, len(far) - 1, M, 100 * max(far)))
+    c.check(gaps[0] < gaps[-1], "%s: the gap shrinks with the distance to the reference (%.3f at step 0, %.3f at the step before it)" % (element, gaps[0], gaps[-1]))
+
+# 2 ranks: the same meshes, so the same errors where the parent chain is intact.
+_, _, _, s = run(base + ["-space", "cr", "-adapt_imbalance", "1.05"], ranks=2)
+rows = s["adapt"]
+cut = max([k for k, r in enumerate(rows) if r["redistributed"]], default=-1)
+same = all(abs(a["error_reference"] - b["error_reference"]) <= 1e-8 * b["error_reference"] for a, b in zip(rows[cut + 1:-1], one["cr"][cut + 1:-1]))
+c.check([r["dofs"] for r in rows] == [r["dofs"] for r in one["cr"]] and same, "2 ranks: the same meshes and reference errors after the last redistribution (step %d)" % cut)
+c.check(all(r["error_reference"] is None for r in rows[:cut + 1]), "2 ranks: no reference error for the %d steps before the last redistribution" % (cut + 1))
+
+env = dict(ENV, PYTHONDONTWRITEBYTECODE="1")
+with tempfile.TemporaryDirectory() as tmp:
+    p = subprocess.run([sys.executable, os.path.join(ROOT, "run", "study.py"), "manufactured-2d", "-box_faces", "4", "-study_levels", "3", "--out", tmp],
+                       capture_output=True, text=True, env=env)
+    c.check(p.returncode == 0 and "uniform against adaptive refinement" in p.stdout, "run/study exit status %d %s" % (p.returncode, p.stderr[-300:]))
+    files = os.listdir(tmp)
+    pictures = ["compare-vs-dofs.png", "compare-vs-time.png", "adapted-mesh-p1.png", "adapted-mesh-cr.png"]
+    for name in pictures:
+        ok = name in files
+        if ok:
+            with open(os.path.join(tmp, name), "rb") as f:
+                ok = f.read(8) == b"\x89PNG\r\n\x1a\n"
+        c.check(ok, "run/study wrote the picture %s" % name)
+    with open(os.path.join(tmp, "compare.json")) as f:
+        rows = json.load(f)["rows"]
+    with open(os.path.join(tmp, "compare.csv")) as f:
+        table = list(csv.DictReader(f))
+    c.check(len(table) == len(rows) and {(r["strategy"], r["element"]) for r in table} == {(a, e) for a in ["uniform", "adaptive"] for e in ["p1", "cr"]},
+            "compare.csv and compare.json: the same %d rows, both strategies and both elements" % len(rows))
+    fields = ["strategy", "element", "step", "dofs", "error", "eta", "efficiency", "newton", "ksp", "seconds"]
+    c.check(all(all(r[k] is not None for k in fields) and r["error_against"] == "exact" for r in rows), "every row has %s, against the exact solution" % ", ".join(fields))
+    for element in ["p1", "cr"]:
+        uni = [r for r in rows if r["strategy"] == "uniform" and r["element"] == element]
+        ada = [r for r in rows if r["strategy"] == "adaptive" and r["element"] == element]
+        finest = uni[-1]["dofs"]
+        c.check(ada[-1]["dofs"] >= finest > ada[-2]["dofs"], "%s: the adaptive run stops at the finest uniform DOFs (%d >= %d > %d)" % (element, ada[-1]["dofs"], finest, ada[-2]["dofs"]))
+        c.check(all(a["seconds"] <= b["seconds"] for a, b in zip(ada, ada[1:])), "%s: the adaptive run time is cumulative (non-decreasing)" % element)
+        c.check(all(abs(r["efficiency"] - r["eta"] / r["error"]) <= 1e-12 * r["efficiency"] for r in uni + ada), "%s: efficiency = eta / error in every row" % element)
+
+    # A scene without an exact solution: the adaptive errors against the adaptive reference.
+    out = os.path.join(tmp, "paper")
+    p = subprocess.run([sys.executable, os.path.join(ROOT, "run", "study.py"), "paper-5.1", "-box_faces", "2", "-study_levels", "3", "-reference_refine", "1",
+                        "-study_spaces", "cr", "--reference-steps", "3", "--out", out], capture_output=True, text=True, env=env)
+    c.check(p.returncode == 0, "run/study paper-5.1 exit status %d %s" % (p.returncode, p.stderr[-300:]))
+    with open(os.path.join(out, "compare.json")) as f:
+        rows = [r for r in json.load(f)["rows"] if r["strategy"] == "adaptive"]
+    ref = [r for r in rows if r["reference_step"]]
+    c.check(len(ref) == 3 and all(r["error_against"] == "adaptive reference" and r["error"] > 0 for r in rows[:-1]) and rows[-1]["error"] is None,
+            "paper-5.1: %d adaptive rows against the adaptive reference, the last 3 steps for the reference" % len(rows))
+c.done()
