@@ -1,0 +1,40 @@
+"""run/stability --only below-h2 on 1 rank (a few seconds): the adaptive rows of stiff-below-h2 (u ~ r^(1/2)),
+checked against the report's own uniform rows rather than against fixed numbers:
+  * the run exits 0 and writes its CSV, with the two study rows and, per element, the adaptive row and the
+    time comparison row;
+  * the adaptive run stopped with its estimate eta below the energy error (against the reference) of the study's
+    finest uniform level of the same element, the tolerance it was given, and eta falls like DOFs^s, s <= -0.45;
+  * the time comparison row names that same uniform error and a positive time ratio (its size is reported, not
+    tested: timing is never a pass/fail test)."""
+import csv
+import os
+import subprocess
+import sys
+import tempfile
+
+from harness import ENV, ROOT, Checker
+
+c = Checker()
+with tempfile.TemporaryDirectory() as tmp:
+    path = os.path.join(tmp, "stability.csv")
+    p = subprocess.run([sys.executable, os.path.join(ROOT, "run", "stability.py"), "--only", "below-h2", "--ranks", "1", "--csv", path],
+                       capture_output=True, text=True, env=ENV)
+    c.check(p.returncode == 0, "run/stability --only below-h2 exits 0 (%d): %s" % (p.returncode, p.stderr[-500:]))
+    rows = list(csv.DictReader(open(path))) if os.path.exists(path) else []
+    for element in ["p1", "cr"]:
+        mine = [r for r in rows if r["element"] == element]
+        study = [r for r in mine if r["variant"].startswith("D|C junction")]
+        adaptive = [r for r in mine if r["variant"].startswith("adaptive")]
+        timing = [r for r in mine if r["variant"].startswith("time vs uniform")]
+        found = len(study) == 1 and len(adaptive) == 1 and len(timing) == 1
+        c.check(found, "%s: study, adaptive and time rows (%d, %d, %d)" % (element, len(study), len(adaptive), len(timing)))
+        if not found:
+            continue
+        uniform, a, t = float(study[0]["energy_error"]), adaptive[0], timing[0]
+        c.check(a["status"] == "ok", "%s adaptive: status %s (%s)" % (element, a["status"], a["notes"]))
+        c.check(float(a["eta"]) < uniform, "%s adaptive: eta %s below the uniform finest error %.4e" % (element, a["eta"], uniform))
+        c.check(a["slope_eta"] != "" and float(a["slope_eta"]) <= -0.45, "%s adaptive: eta ~ DOFs^%s, <= -0.45" % (element, a["slope_eta"]))
+        c.check(int(a["steps"]) >= 5, "%s adaptive: %s steps" % (element, a["steps"]))
+        c.check(float(t["energy_error"]) == uniform and float(t["time_ratio"]) > 0, "%s time row: uniform error %s, ratio %s" % (element, t["energy_error"], t["time_ratio"]))
+        c.check(t["status"] in ("ok", "above target"), "%s time row: status %s (%s)" % (element, t["status"], t["notes"]))
+c.done()
