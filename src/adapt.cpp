@@ -20,7 +20,7 @@ PetscErrorCode AdaptOptionsFromCommandLine(MPI_Comm comm, AdaptOptions &o)
   PetscCall(OptionInt(PetscOptionsObject, "-adapt_max_dofs", "Stop refining once a mesh has this many DOFs (0: no limit)", o.maxDofs, 0, PETSC_MAX_INT));
   PetscCall(OptionReal(PetscOptionsObject, "-adapt_imbalance", "Redistribute the refined mesh when max cells per rank / mean exceeds this", o.imbalance, 1));
   PetscInt how = (PetscInt)o.refinement;
-  PetscCall(OptionEList(PetscOptionsObject, "-adapt_refinement", "Refinement of the marked cells: bisection of marked edges (2D and 3D) or PETSc's refine_sbr (2D)", {"bisection", "sbr"}, how));
+  PetscCall(OptionEList(PetscOptionsObject, "-adapt_refinement", "Refinement of the marked cells: bisection of their longest edges or of all their edges (2D and 3D), or PETSc's refine_sbr (2D)", {"bisection", "bisection_all", "sbr"}, how));
   o.refinement = (LocalRefinement)how;
   PetscCall(OptionInt(PetscOptionsObject, "-adapt_reference_steps", "Go on this many steps beyond the adaptive run and measure every earlier step's energy error against the last solution (0: none)", o.referenceSteps, 0, 100));
   PetscOptionsEnd();

@@ -199,7 +199,7 @@ PetscErrorCode SyncMarks(const Coarse &m, const Sharing &sh, std::vector<char> &
 }
 
 // Rivara's closure of the marks (see the top of the file), with shared edges agreed between ranks.
-PetscErrorCode CloseMarks(MPI_Comm comm, const Coarse &m, const Sharing &sh, const std::vector<PetscInt> &rank, const std::vector<char> &marked, std::vector<char> &mark)
+PetscErrorCode CloseMarks(MPI_Comm comm, const Coarse &m, const Sharing &sh, const std::vector<PetscInt> &rank, const std::vector<char> &marked, bool allEdges, std::vector<char> &mark)
 {
   const PetscInt nc = m.NumCells(), ne = m.NumEdges();
   std::vector<PetscInt> longest(nc), starStart(ne + 1, 0), star(m.nce * nc), work;
@@ -220,7 +220,11 @@ PetscErrorCode CloseMarks(MPI_Comm comm, const Coarse &m, const Sharing &sh, con
     if (!mark[e]) mark[e] = 1, work.push_back(e);
   };
   for (PetscInt c = 0; c < nc; ++c)
-    if (marked[c]) markEdge(longest[c]);
+    if (marked[c]) {
+      if (allEdges)
+        for (PetscInt k = 0; k < m.nce; ++k) markEdge(m.cellEdges[m.nce * c + k]);
+      else markEdge(longest[c]);
+    }
   for (;;) {
     while (!work.empty()) {
       const PetscInt e = work.back();
@@ -641,7 +645,7 @@ PetscErrorCode CarryLabels(DM coarse, DM fine, const Coarse &m, const Fine &f)
 
 } // namespace
 
-PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked, DM *fine, std::vector<PetscInt> *parent)
+PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked, DM *fine, std::vector<PetscInt> *parent, bool allEdges)
 {
   Coarse   m;
   Sharing  sh;
@@ -654,7 +658,7 @@ PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked,
   PetscCall(GetSharing(coarse, m, sh));
   const std::vector<PetscInt> rank = EdgeOrder(m);
   std::vector<char>           mark;
-  PetscCall(CloseMarks(PetscObjectComm((PetscObject)coarse), m, sh, rank, marked, mark));
+  PetscCall(CloseMarks(PetscObjectComm((PetscObject)coarse), m, sh, rank, marked, allEdges, mark));
   Cut(m, rank, mark, ch);
   std::vector<PetscInt> gnum;
   PetscCall(NumberVertices(coarse, m, sh, mark, gnum));

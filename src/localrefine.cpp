@@ -102,7 +102,7 @@ PetscErrorCode RefineMarked(DM coarse, const std::vector<char> &marked, LocalRef
   PetscInt dim;
   PetscFunctionBeginUser;
   PetscCall(DMGetDimension(coarse, &dim));
-  if (how == LocalRefinement::Bisection) PetscCall(RefineMarkedBisection(coarse, marked, fine, parent));
+  if (how != LocalRefinement::SBR) PetscCall(RefineMarkedBisection(coarse, marked, fine, parent, how == LocalRefinement::BisectionAll));
   else if (dim == 2) PetscCall(RefineMarkedSBR(coarse, marked, fine, parent));
   else SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)coarse), "option -adapt_refinement: sbr refines triangles only; use bisection for tetrahedra");
   PetscFunctionReturn(0);

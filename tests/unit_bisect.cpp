@@ -295,11 +295,11 @@ static PetscErrorCode CreateMesh(MPI_Comm comm, const MeshOptions &o, DM *dm)
 }
 
 // One refinement of `coarse` with every check but the comparison with one rank.
-static PetscErrorCode CheckStep(unit::Checker &ck, const std::string &tag, DM coarse, const std::vector<char> &marked, const Marker &far, DM *fine)
+static PetscErrorCode CheckStep(unit::Checker &ck, const std::string &tag, DM coarse, const std::vector<char> &marked, bool allEdges, const Marker &far, DM *fine)
 {
   std::vector<PetscInt> parent;
   PetscFunctionBeginUser;
-  PetscCall(RefineMarkedBisection(coarse, marked, fine, &parent));
+  PetscCall(RefineMarkedBisection(coarse, marked, fine, &parent, allEdges));
   PetscCall(DMPlexCheckSymmetry(*fine));
   PetscCall(DMPlexCheckSkeleton(*fine, 0));
   PetscCall(DMPlexCheckFaces(*fine, 0));
@@ -363,6 +363,7 @@ struct Case {
   MeshOptions o;
   double      radius; // cells with centroid within radius of the origin are marked
   double      far;    // cells with centroid beyond this distance from the origin must stay whole
+  bool        allEdges = false; // marked cells cut all their edges, not only the longest
 };
 
 // Refines `steps` times (first by the radius, then the cells near the origin), checking each step; each
@@ -396,14 +397,14 @@ static PetscErrorCode TestCase(unit::Checker &ck, const Case &k, PetscInt steps)
     DM                fine;
     PetscCall(Mark(dm, near, marked));
     const std::string tag = k.name + " step " + std::to_string(s + 1);
-    PetscCall(CheckStep(ck, tag, dm, marked, far, &fine));
+    PetscCall(CheckStep(ck, tag, dm, marked, k.allEdges, far, &fine));
     PetscCall(DMDestroy(&dm));
     dm = fine;
     {
       DM                                 sfine;
       std::vector<std::array<double, 4>> a, b;
       PetscCall(Mark(serial, near, marked));
-      PetscCall(RefineMarkedBisection(serial, marked, &sfine, NULL));
+      PetscCall(RefineMarkedBisection(serial, marked, &sfine, NULL, k.allEdges));
       PetscCall(DMDestroy(&serial));
       serial = sfine;
       PetscCall(AllCells(dm, a));
@@ -492,8 +493,15 @@ int main(int argc, char **argv)
   Case cube;
   cube.name = "gmsh cube", cube.o.file = std::string(SIGNORINI_TEST_DATA) + "/cube.msh", cube.radius = 0.5, cube.far = 1.2;
   cases.push_back(cube);
+  // The same with all edges of the marked cells cut (-adapt_refinement bisection_all), fewer steps.
+  const size_t longest = cases.size();
+  for (size_t i = 0; i < longest; ++i) {
+    Case all = cases[i];
+    all.name += ", all edges of marked cells", all.allEdges = true;
+    cases.push_back(all);
+  }
   for (const Case &k : cases) {
-    PetscErrorCode ierr = TestCase(ck, k, 12);
+    PetscErrorCode ierr = TestCase(ck, k, k.allEdges ? 8 : 12);
     if (ierr) ck.PetscFailure(ierr, k.name);
   }
   const int status = ck.Finish();

@@ -29,9 +29,11 @@ struct AdaptOptions {
   PetscReal tol       = 0;   // -adapt_tol: stop once eta < tol
   PetscInt  maxDofs   = 0;   // -adapt_max_dofs: stop once a mesh has this many DOFs (0: no limit)
   PetscReal imbalance = 1.2; // -adapt_imbalance: redistribute when max cells per rank / mean exceeds it
-  // -adapt_refinement: bisection (localrefine.h, 2D and 3D) or sbr (PETSc's refine_sbr transform, 2D);
-  // bisection by default: at 131 k triangles refine_sbr took 3.1 s, six times the next solve.
-  LocalRefinement refinement = LocalRefinement::Bisection;
+  // -adapt_refinement: bisection_all (a marked cell cuts all its edges, so its h halves, the default),
+  // bisection (only its longest edge: half as many new cells per step, so about twice the steps and run
+  // time to the same error on stiff-below-h2), both in 2D and 3D, or sbr (PETSc's refine_sbr transform, 2D,
+  // six times the next solve's time at 131 k triangles).
+  LocalRefinement refinement = LocalRefinement::BisectionAll;
   PetscInt  referenceSteps = 0; // -adapt_reference_steps: further steps whose last solution is the reference
 };
 PetscErrorCode AdaptOptionsFromCommandLine(MPI_Comm comm, AdaptOptions &o);

@@ -14,14 +14,16 @@ namespace signorini {
 // Collective. marked[c - cStart] != 0 for the cells to refine (the closure may refine more). parent[c] of
 // fine cell c (fine cells start at 0) is the coarse cell (c - cStart) containing it.
 // By bisection of marked edges (2D and 3D; bisect.cpp).
-PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked, DM *fine, std::vector<PetscInt> *parent);
+// allEdges: a marked cell marks all its edges (each marked triangle becomes 4 cells, h halves), not only its
+// longest (2 cells).
+PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked, DM *fine, std::vector<PetscInt> *parent, bool allEdges = false);
 // By PETSc's skeleton-based refinement, DMPlexTransform "refine_sbr" (2D only; localrefine.cpp).
 PetscErrorCode RefineMarkedSBR(DM coarse, const std::vector<char> &marked, DM *fine, std::vector<PetscInt> *parent);
 // PETSc's refinement of `coarse` by a DMPlexTransform of `type`, restricted to the points of `active`
 // (value DM_ADAPT_REFINE; null: all), with the parent map as above when asked for.
 PetscErrorCode TransformRefine(DM coarse, DMPlexTransformType type, DMLabel active, DM *fine, std::vector<PetscInt> *parent);
 // The refinement of marked cells by one of the two (SBR: triangles only, an input error otherwise).
-enum class LocalRefinement { Bisection, SBR };
+enum class LocalRefinement { Bisection, BisectionAll, SBR };
 PetscErrorCode RefineMarked(DM coarse, const std::vector<char> &marked, LocalRefinement how, DM *fine, std::vector<PetscInt> *parent);
 
 } // namespace signorini
