@@ -180,10 +180,10 @@ PetscErrorCode CellOscillation(const Space &space, const Problem &problem, const
 }
 
 // The sums over the cells that the bounds need.
-enum Sum { kF2, kN2, kOsc2, kGamma, kFOsc2, kFhOsc2, kNumSums };
+enum Sum { kF2, kN2, kOsc2, kGamma, kFOsc2, kFhOsc2, kFh2, kNumSums };
 
 // The cell terms F_T^2, N_T^2 and osc_T^2 into the indicators and the local sums: F^2, N^2, osc^2,
-// sum_T (F_T + osc_T)^2 and sum_T (Fh_T + osc_T)^2 with Fh_T = ||kappa^{-1/2}(kappa grad u_h - sigma)||_T.
+// sum_T (F_T + osc_T)^2, sum_T (Fh_T + osc_T)^2 and Fh^2 with Fh_T = ||kappa^{-1/2}(kappa grad u_h - sigma)||_T.
 void CellTerms(const Space &space, const System &sys, const Reconstruction &r, const PetscScalar *a, std::vector<PetscReal> &cellEta2, PetscReal *sums)
 {
   const PetscInt dim = space.dim, nb = space.Nb();
@@ -206,12 +206,38 @@ void CellTerms(const Space &space, const System &sys, const Reconstruction &r, c
     n2 *= kappa * g.volume;
     const PetscReal f2 = FluxTerm(dim, X, g, &r.flux[c * nb], w, kappa), o2 = r.oscillation[c] * r.oscillation[c];
     cellEta2[c] += f2 + n2 + o2;
-    const PetscReal fo = std::sqrt(f2) + r.oscillation[c], fho = std::sqrt(FluxTerm(dim, X, g, &r.flux[c * nb], wh, kappa)) + r.oscillation[c];
-    sums[kF2] += f2, sums[kN2] += n2, sums[kOsc2] += o2, sums[kFOsc2] += fo * fo, sums[kFhOsc2] += fho * fho;
+    const PetscReal fh2 = FluxTerm(dim, X, g, &r.flux[c * nb], wh, kappa);
+    const PetscReal fo = std::sqrt(f2) + r.oscillation[c], fho = std::sqrt(fh2) + r.oscillation[c];
+    sums[kF2] += f2, sums[kN2] += n2, sums[kOsc2] += o2, sums[kFOsc2] += fo * fo, sums[kFhOsc2] += fho * fho, sums[kFh2] += fh2;
   }
 }
 
-// The smaller of two guaranteed bounds of |||u - u_h|||, both from the variational inequality tested with
+// The terms the bounds are made of (global): N = |||u_h - v|||, F = ||kappa^{-1/2}(kappa grad v - sigma)||,
+// Fh = ||kappa^{-1/2}(kappa grad_h u_h - sigma)||, osc = (sum_T osc_T^2)^{1/2}, b and bh (cell by cell, see
+// Bound), gamma the contact term.
+struct BoundTerms {
+  PetscReal N, F, Fh, osc, b, bh, gamma;
+};
+
+// Bound 3 (see Bound): the largest min(E + N, S + Fh) over the (E, S) >= 0 with E <= Emax and
+// (E - osc)^2 + S^2 <= G2 + osc^2 (G2 = F^2 + 2 gamma). On that disc's edge S + Fh = c(E) = sqrt(G2 + 2 osc E -
+// E^2) + Fh is concave in E with its top at E = osc, and E + N rises: if c <= E + N at the top, the top is the
+// answer; otherwise the answer is E + N where the two meet to the right of the top (the larger root of
+// (E + N - Fh)^2 = G2 + 2 osc E - E^2 with E + N - Fh >= 0), or at Emax if they do not meet before it.
+// (Checked against a brute-force maximisation on random terms while writing it.)
+PetscReal FluxErrorBound(const BoundTerms &t, PetscReal gamma, PetscReal Emax)
+{
+  const PetscReal G2 = t.F * t.F + 2 * gamma, o = t.osc;
+  Emax                   = std::min(Emax, o + std::sqrt(o * o + G2)); // beyond it, no S >= 0 is left
+  const PetscReal top    = std::min(o, Emax);
+  const PetscReal cTop   = std::sqrt(std::max(G2 + 2 * o * top - top * top, (PetscReal)0)) + t.Fh;
+  if (cTop <= top + t.N) return cTop;
+  const PetscReal p = t.N - t.Fh, disc = (p - o) * (p - o) - 2 * (p * p - G2);
+  const PetscReal E = disc < 0 ? Emax : std::min(Emax, std::max({top, -p, (o - p + std::sqrt(disc)) / 2}));
+  return E + t.N;
+}
+
+// The smallest of three guaranteed bounds of |||u - u_h|||, all from the variational inequality tested with
 // v (see estimate.h for the assumptions), N = |||u_h - v|||, gamma the contact term:
 //  1. estimate.h's: E = |||u - v||| <= (b + sqrt(b^2 + 4 gamma)) / 2 with b = F + osc, and |||u - u_h||| <= N + E.
 //  2. With e = u - u_h: |||e|||^2 = (kappa grad_h e, grad(u - v)) + (kappa grad_h e, grad_h(v - u_h)); the second
@@ -220,13 +246,27 @@ void CellTerms(const Space &space, const System &sys, const Reconstruction &r, c
 //     a = N + bh, c = bh N + gamma: |||e||| <= (a + sqrt(a^2 + 4 c)) / 2. sigma is close to kappa grad_h u_h
 //     (for CR it differs by the load term only), so bh is of the size of osc, and 2. is about N + 2 bh where
 //     1. is about 2 N (F and N both measure how far v is from u_h). For P1 (N = 0) both are the same.
+//  3. The primal-dual split (Prager-Synge for the inequality): with S = ||kappa^{-1/2}(kappa grad u - sigma)||
+//     (the flux's own error), kappa^{-1/2}(kappa grad v - sigma) = kappa^{1/2} grad(v - u) + kappa^{-1/2}(kappa
+//     grad u - sigma), so F^2 = E^2 + S^2 + 2 X, X = (grad(v - u), kappa grad u - sigma). The inequality
+//     tested with v in K gives (kappa grad u, grad(v - u)) >= (f, v - u) + (g, v - u)_N, and Green's formula
+//     with div sigma = -Pi_0 f, sigma.n = Pi_0 g on Gamma_N and v - u = 0 on Gamma_D gives (sigma, grad(v - u))
+//     = (Pi_0 f, v - u) + (Pi_0 g, v - u)_N + (sigma.n, v - u)_C. So X >= (f - Pi_0 f, v - u) + (g - Pi_0 g,
+//     v - u)_N - (sigma.n, v - psi)_C + (sigma.n, u - psi)_C >= -osc E - gamma (sigma.n >= 0, u >= psi on
+//     Gamma_C; the oscillation as in estimate.h), i.e. E^2 + S^2 <= F^2 + 2 gamma + 2 osc E. The broken
+//     gradient of the error is kappa^{-1/2}(kappa grad u - sigma) + kappa^{-1/2}(sigma - kappa grad_h u_h),
+//     so |||e||| <= S + Fh, and |||e||| <= E + N as in 1.: |||e||| <= max min(E + N, S + Fh) over the (E, S)
+//     allowed (FluxErrorBound), E <= the E of 1. too. Where v is close to u_h (F about N, Fh small), E and S
+//     cannot both be large: the bound is about max(N, F) instead of the 2 N of 1. and the N + 2 bh of 2.
+//     For P1 (Fh = F, N = 0) it is never below 1.
 // b and bh combine flux and oscillation cell by cell (sum_T (F_T + osc_T) |||w|||_T <= b |||w|||), which is
 // at most F + osc. gamma < 0 only where psi is not affine on a face (v >= psi at the vertices only): the
 // bound then holds up to that data approximation, and gamma counts as 0.
-PetscReal Bound(PetscReal N, PetscReal b, PetscReal bh, PetscReal contact)
+PetscReal Bound(const BoundTerms &t)
 {
-  const PetscReal gamma = std::max(contact, (PetscReal)0), a = N + bh, c = bh * N + gamma;
-  return std::min(N + (b + std::sqrt(b * b + 4 * gamma)) / 2, (a + std::sqrt(a * a + 4 * c)) / 2);
+  const PetscReal gamma = std::max(t.gamma, (PetscReal)0), a = t.N + t.bh, c = t.bh * t.N + gamma;
+  const PetscReal E     = (t.b + std::sqrt(t.b * t.b + 4 * gamma)) / 2;
+  return std::min({t.N + E, (a + std::sqrt(a * a + 4 * c)) / 2, FluxErrorBound(t, gamma, E)});
 }
 
 // From the quadratic inequality E^2 <= b E + gamma (estimate.h), E^2 <= b^2 + 2 gamma, so the cell
@@ -257,7 +297,7 @@ PetscErrorCode EstimateFromReconstruction(const Space &space, const Problem &pro
   e.nonconformity = std::sqrt(sums[kN2]);
   e.oscillation   = std::sqrt(sums[kOsc2]);
   e.contact       = sums[kGamma];
-  e.eta           = Bound(e.nonconformity, std::sqrt(sums[kFOsc2]), std::sqrt(sums[kFhOsc2]), e.contact);
+  e.eta           = Bound({e.nonconformity, e.flux, std::sqrt(sums[kFh2]), e.oscillation, std::sqrt(sums[kFOsc2]), std::sqrt(sums[kFhOsc2]), e.contact});
   PetscFunctionReturn(0);
 }
 } // namespace
