@@ -64,11 +64,12 @@ void ComputeCellLoad(const Space &space, const Problem &problem, const System &s
 namespace {
 bool InParts(const std::vector<PetscInt> &parts, PetscInt part) { return std::find(parts.begin(), parts.end(), part) != parts.end(); }
 
-// The face of bf as dim vertex indices (v - vStart) and the cell's geometry.
+// The face of bf as dim vertex indices (v - vStart), the cell's geometry, and the reach of the cell from
+// the vertex opposite the face (its longest edge there: no point of the cell is farther from that vertex).
 struct FaceOf {
   PetscInt     vert[3];
   CellGeometry g;
-  PetscReal    area, diameter;
+  PetscReal    area, diameter, reach = 0;
   FaceOf(const Space &space, const BoundaryFace &bf)
   {
     PetscInt n = 0;
@@ -78,14 +79,20 @@ struct FaceOf {
     ComputeCellGeometry(space.dim, X, g);
     area     = space.FaceMeasure(bf);
     diameter = SimplexDiameter(space.dim, X);
+    for (PetscInt k = 0; k <= space.dim; ++k) {
+      PetscReal l2 = 0;
+      for (PetscInt d = 0; d < space.dim; ++d) l2 += (X[k * space.dim + d] - X[bf.opposite * space.dim + d]) * (X[k * space.dim + d] - X[bf.opposite * space.dim + d]);
+      reach = std::max(reach, std::sqrt(l2));
+    }
   }
 };
 
-// Adds the Neumann oscillation of each face of Gamma_N to its cell's: for e in H^1 with mean e_F on F,
-// (g - Pi_0 g, e)_F = (g - Pi_0 g, e - e_F)_F and ||e - e_F||_F <= C_F ||grad e||_T with
-//   C_F^2 = |F| h_T^2 / |T| (1/pi^2 + 2/(pi d)),
+// Adds the Neumann oscillation of each face of Gamma_N to its cell's: for e in H^1 with mean e_T on T,
+// (g - Pi_0 g, e)_F = (g - Pi_0 g, e - e_T)_F and ||e - e_T||_F <= C_F ||grad e||_T with
+//   C_F^2 = |F| h_T / |T| (h_T / pi^2 + 2 l_F / (pi d)),
 // from int_F w = |F|/(d|T|) int_T (d w + (x - a_F) . grad w) (a_F the vertex opposite F) with
-// w = (e - e_T)^2 and Poincare's h_T/pi. Pi_0 g is the mean by the assembly's face rule, the flux's.
+// w = (e - e_T)^2, Poincare's ||e - e_T||_T <= h_T/pi ||grad e||_T, and |x - a_F| <= l_F on T, l_F the longest
+// edge at a_F (<= h_T). Pi_0 g is the mean by the assembly's face rule, the flux's.
 void AddNeumannOscillation(const Space &space, const Problem &problem, const System &sys, std::vector<PetscReal> &osc, std::string &error)
 {
   if (!problem.HasNeumann() || problem.g->IsConstant()) return;
@@ -105,7 +112,7 @@ void AddNeumannOscillation(const Space &space, const Problem &problem, const Sys
       mean += rule.weights[q] * values[q];
     }
     for (PetscInt q = 0; q < rule.Size(); ++q) dev2 += rule.weights[q] * (values[q] - mean) * (values[q] - mean);
-    const PetscReal C2 = face.area * face.diameter * face.diameter / face.g.volume * (1 / (M_PI * M_PI) + 2 / (M_PI * dim));
+    const PetscReal C2 = face.area * face.diameter / face.g.volume * (face.diameter / (M_PI * M_PI) + 2 * face.reach / (M_PI * dim));
     osc[bf.cell] += std::sqrt(C2 * dev2 * face.area / sys.Kappa(bf.cell));
   }
 }
