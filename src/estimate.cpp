@@ -191,7 +191,8 @@ enum Sum { kF2, kN2, kOsc2, kGamma, kFOsc2, kFhOsc2, kFh2, kNumSums };
 
 // The cell terms F_T^2, N_T^2 and osc_T^2 into the indicators and the local sums: F^2, N^2, osc^2,
 // sum_T (F_T + osc_T)^2, sum_T (Fh_T + osc_T)^2 and Fh^2 with Fh_T = ||kappa^{-1/2}(kappa grad u_h - sigma)||_T.
-void CellTerms(const Space &space, const System &sys, const Reconstruction &r, const PetscScalar *a, std::vector<PetscReal> &cellEta2, PetscReal *sums)
+// With vertexSums (CR), also the per-vertex sums ImproveCompanion starts from.
+void CellTerms(const Space &space, const System &sys, const Reconstruction &r, const PetscScalar *a, std::vector<PetscReal> &cellEta2, PetscReal *sums, std::vector<PetscReal> *vertexSums)
 {
   const PetscInt dim = space.dim, nb = space.Nb();
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
@@ -211,6 +212,11 @@ void CellTerms(const Space &space, const System &sys, const Reconstruction &r, c
       n2 += (gu[d] - gv[d]) * (gu[d] - gv[d]);
     }
     n2 *= kappa * g.volume;
+    for (PetscInt k = 0; vertexSums && k < nb; ++k) {
+      PetscReal dot = 0, l2 = 0, *vs = &(*vertexSums)[2 * space.cellVert[c * nb + k]];
+      for (PetscInt d = 0; d < dim; ++d) dot += (gu[d] - gv[d]) * g.gradLambda[k][d], l2 += g.gradLambda[k][d] * g.gradLambda[k][d];
+      vs[0] += kappa * g.volume * dot, vs[1] += kappa * g.volume * l2;
+    }
     const PetscReal f2 = FluxTerm(dim, X, g, &r.flux[c * nb], w, kappa), o2 = r.oscillation[c] * r.oscillation[c];
     cellEta2[c] += f2 + n2 + o2;
     const PetscReal fh2 = FluxTerm(dim, X, g, &r.flux[c * nb], wh, kappa);
@@ -288,18 +294,26 @@ PetscErrorCode EstimateFromReconstruction(const Space &space, const Problem &pro
   std::string        error;
   PetscReal          sums[kNumSums] = {0};
   PetscFunctionBeginUser;
-  e.cellEta2.assign(space.NumCells(), 0.0);
   PetscCall(DMGetLocalVector(space.dm, &loc));
   PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, loc));
   PetscCall(VecGetArrayRead(loc, &a));
   if (r.oscillation.empty()) PetscCall(CellOscillation(space, problem, sys, r.oscillation, error));
   AddNeumannOscillation(space, problem, sys, r.oscillation, error);
-  sums[kGamma] = ContactTerm(space, problem, sys, r, a, e.cellEta2, error);
-  CellTerms(space, sys, r, a, e.cellEta2, sums);
+  PetscCall(CheckAll(comm, error.empty(), error));
+  std::vector<PetscReal> vertexSums(r.companion.empty() ? 0 : 2 * r.companion.size(), 0.0);
+  for (bool again = true; again;) { // a second time when ImproveCompanion changed v
+    e.cellEta2.assign(space.NumCells(), 0.0);
+    std::fill(sums, sums + kNumSums, 0.0);
+    sums[kGamma] = ContactTerm(space, problem, sys, r, a, e.cellEta2, error);
+    CellTerms(space, sys, r, a, e.cellEta2, sums, vertexSums.empty() ? nullptr : &vertexSums);
+    PetscCall(CheckAll(comm, error.empty(), error));
+    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, sums, kNumSums, MPIU_REAL, MPI_SUM, comm));
+    again = false;
+    if (!vertexSums.empty()) PetscCall(ImproveCompanion(space, sys, vertexSums, sums[kN2], r, again));
+    vertexSums.clear();
+  }
   PetscCall(VecRestoreArrayRead(loc, &a));
   PetscCall(DMRestoreLocalVector(space.dm, &loc));
-  PetscCall(CheckAll(comm, error.empty(), error));
-  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, sums, kNumSums, MPIU_REAL, MPI_SUM, comm));
   e.flux          = std::sqrt(sums[kF2]);
   e.nonconformity = std::sqrt(sums[kN2]);
   e.oscillation   = std::sqrt(sums[kOsc2]);
