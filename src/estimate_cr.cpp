@@ -3,6 +3,7 @@
 #include "signorini/estimate.h"
 
 #include <algorithm>
+#include <cmath>
 
 namespace signorini {
 
@@ -68,26 +69,40 @@ PetscErrorCode FluxesAndVertexSums(const Space &space, const Problem &problem, c
   PetscFunctionReturn(0);
 }
 
+// The cells' gradients of the barycentric coordinates scaled by (kappa_T |T|)^{1/2}, (d+1) d values a
+// cell, so that the stiffness products below make no geometry (only kept while the iterations run).
+std::vector<PetscReal> ScaledGradients(const Space &space, const System &sys)
+{
+  const PetscInt         dim = space.dim, nb = space.Nb();
+  std::vector<PetscReal> sg(space.NumCells() * nb * dim);
+  for (PetscInt c = 0; c < space.NumCells(); ++c) {
+    const Space::Coords X = space.X(c);
+    CellGeometry        g;
+    ComputeCellGeometry(dim, X, g);
+    const PetscReal s = std::sqrt(sys.Kappa(c) * g.volume);
+    for (PetscInt k = 0; k < nb; ++k)
+      for (PetscInt d = 0; d < dim; ++d) sg[(c * nb + k) * dim + d] = s * g.gradLambda[k][d];
+  }
+  return sg;
+}
+
 // y = A x: per vertex z, y_z = sum_T kappa_T |T| grad x_T . grad lambda_z over the cells at z (summed over
 // ranks; 0 where v is held, on Gamma_D), A the P1 stiffness.
-PetscErrorCode StiffnessProduct(const Space &space, const System &sys, const Reconstruction &r, const std::vector<PetscReal> &x, std::vector<PetscReal> &y)
+PetscErrorCode StiffnessProduct(const Space &space, const std::vector<PetscReal> &sg, const Reconstruction &r, const std::vector<PetscReal> &x, std::vector<PetscReal> &y)
 {
   const PetscInt dim = space.dim, nb = space.Nb(), nv = (PetscInt)x.size();
   PetscFunctionBeginUser;
   y.assign(nv, 0.0);
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
-    const Space::Coords X = space.X(c);
-    CellGeometry        g;
-    PetscReal           w[3] = {0, 0, 0};
-    ComputeCellGeometry(dim, X, g);
-    const PetscInt *vert = &space.cellVert[c * nb];
+    const PetscInt  *vert = &space.cellVert[c * nb];
+    const PetscReal *G    = &sg[c * nb * dim];
+    PetscReal        w[3] = {0, 0, 0};
     for (PetscInt k = 0; k < nb; ++k)
-      for (PetscInt d = 0; d < dim; ++d) w[d] += x[vert[k]] * g.gradLambda[k][d];
-    const PetscReal kv = sys.Kappa(c) * g.volume;
+      for (PetscInt d = 0; d < dim; ++d) w[d] += x[vert[k]] * G[k * dim + d];
     for (PetscInt k = 0; k < nb; ++k) {
       PetscReal dot = 0;
-      for (PetscInt d = 0; d < dim; ++d) dot += w[d] * g.gradLambda[k][d];
-      y[vert[k]] += kv * dot;
+      for (PetscInt d = 0; d < dim; ++d) dot += w[d] * G[k * dim + d];
+      y[vert[k]] += dot;
     }
   }
   PetscCall(SumOverRanks(space, 1, y));
@@ -135,10 +150,11 @@ PetscErrorCode ImproveCompanion(const Space &space, const System &sys, std::vect
   PetscCallMPI(Dot(res, z, rz));
   if (!(rz > 0.1 * n2)) PetscFunctionReturn(0);
   p = z;
-  PetscInt steps = 0;
+  const std::vector<PetscReal> sg = ScaledGradients(space, sys);
+  PetscInt                     steps = 0;
   while (steps < 100) {
     PetscReal pq, rzNext;
-    PetscCall(StiffnessProduct(space, sys, r, p, q));
+    PetscCall(StiffnessProduct(space, sg, r, p, q));
     PetscCallMPI(Dot(p, q, pq));
     if (!(pq > 0)) break;
     const PetscReal alpha = rz / pq;
