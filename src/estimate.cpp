@@ -64,11 +64,12 @@ void ComputeCellLoad(const Space &space, const Problem &problem, const System &s
 namespace {
 bool InParts(const std::vector<PetscInt> &parts, PetscInt part) { return std::find(parts.begin(), parts.end(), part) != parts.end(); }
 
-// The face of bf as dim vertex indices (v - vStart) and the cell's geometry.
+// The face of bf as dim vertex indices (v - vStart), the cell's geometry, and the reach of the cell from
+// the vertex opposite the face (its longest edge there: no point of the cell is farther from that vertex).
 struct FaceOf {
   PetscInt     vert[3];
   CellGeometry g;
-  PetscReal    area, diameter;
+  PetscReal    area, diameter, reach = 0;
   FaceOf(const Space &space, const BoundaryFace &bf)
   {
     PetscInt n = 0;
@@ -78,14 +79,20 @@ struct FaceOf {
     ComputeCellGeometry(space.dim, X, g);
     area     = space.FaceMeasure(bf);
     diameter = SimplexDiameter(space.dim, X);
+    for (PetscInt k = 0; k <= space.dim; ++k) {
+      PetscReal l2 = 0;
+      for (PetscInt d = 0; d < space.dim; ++d) l2 += (X[k * space.dim + d] - X[bf.opposite * space.dim + d]) * (X[k * space.dim + d] - X[bf.opposite * space.dim + d]);
+      reach = std::max(reach, std::sqrt(l2));
+    }
   }
 };
 
-// Adds the Neumann oscillation of each face of Gamma_N to its cell's: for e in H^1 with mean e_F on F,
-// (g - Pi_0 g, e)_F = (g - Pi_0 g, e - e_F)_F and ||e - e_F||_F <= C_F ||grad e||_T with
-//   C_F^2 = |F| h_T^2 / |T| (1/pi^2 + 2/(pi d)),
+// Adds the Neumann oscillation of each face of Gamma_N to its cell's: for e in H^1 with mean e_T on T,
+// (g - Pi_0 g, e)_F = (g - Pi_0 g, e - e_T)_F and ||e - e_T||_F <= C_F ||grad e||_T with
+//   C_F^2 = |F| h_T / |T| (h_T / pi^2 + 2 l_F / (pi d)),
 // from int_F w = |F|/(d|T|) int_T (d w + (x - a_F) . grad w) (a_F the vertex opposite F) with
-// w = (e - e_T)^2 and Poincare's h_T/pi. Pi_0 g is the mean by the assembly's face rule, the flux's.
+// w = (e - e_T)^2, Poincare's ||e - e_T||_T <= h_T/pi ||grad e||_T, and |x - a_F| <= l_F on T, l_F the longest
+// edge at a_F (<= h_T). Pi_0 g is the mean by the assembly's face rule, the flux's.
 void AddNeumannOscillation(const Space &space, const Problem &problem, const System &sys, std::vector<PetscReal> &osc, std::string &error)
 {
   if (!problem.HasNeumann() || problem.g->IsConstant()) return;
@@ -105,7 +112,7 @@ void AddNeumannOscillation(const Space &space, const Problem &problem, const Sys
       mean += rule.weights[q] * values[q];
     }
     for (PetscInt q = 0; q < rule.Size(); ++q) dev2 += rule.weights[q] * (values[q] - mean) * (values[q] - mean);
-    const PetscReal C2 = face.area * face.diameter * face.diameter / face.g.volume * (1 / (M_PI * M_PI) + 2 / (M_PI * dim));
+    const PetscReal C2 = face.area * face.diameter / face.g.volume * (face.diameter / (M_PI * M_PI) + 2 * face.reach / (M_PI * dim));
     osc[bf.cell] += std::sqrt(C2 * dev2 * face.area / sys.Kappa(bf.cell));
   }
 }
@@ -180,11 +187,12 @@ PetscErrorCode CellOscillation(const Space &space, const Problem &problem, const
 }
 
 // The sums over the cells that the bounds need.
-enum Sum { kF2, kN2, kOsc2, kGamma, kFOsc2, kFhOsc2, kNumSums };
+enum Sum { kF2, kN2, kOsc2, kGamma, kFOsc2, kFhOsc2, kFh2, kNumSums };
 
 // The cell terms F_T^2, N_T^2 and osc_T^2 into the indicators and the local sums: F^2, N^2, osc^2,
-// sum_T (F_T + osc_T)^2 and sum_T (Fh_T + osc_T)^2 with Fh_T = ||kappa^{-1/2}(kappa grad u_h - sigma)||_T.
-void CellTerms(const Space &space, const System &sys, const Reconstruction &r, const PetscScalar *a, std::vector<PetscReal> &cellEta2, PetscReal *sums)
+// sum_T (F_T + osc_T)^2, sum_T (Fh_T + osc_T)^2 and Fh^2 with Fh_T = ||kappa^{-1/2}(kappa grad u_h - sigma)||_T.
+// With vertexSums (CR), also the per-vertex sums ImproveCompanion starts from.
+void CellTerms(const Space &space, const System &sys, const Reconstruction &r, const PetscScalar *a, std::vector<PetscReal> &cellEta2, PetscReal *sums, std::vector<PetscReal> *vertexSums)
 {
   const PetscInt dim = space.dim, nb = space.Nb();
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
@@ -204,14 +212,45 @@ void CellTerms(const Space &space, const System &sys, const Reconstruction &r, c
       n2 += (gu[d] - gv[d]) * (gu[d] - gv[d]);
     }
     n2 *= kappa * g.volume;
+    for (PetscInt k = 0; vertexSums && k < nb; ++k) {
+      PetscReal dot = 0, l2 = 0, *vs = &(*vertexSums)[2 * space.cellVert[c * nb + k]];
+      for (PetscInt d = 0; d < dim; ++d) dot += (gu[d] - gv[d]) * g.gradLambda[k][d], l2 += g.gradLambda[k][d] * g.gradLambda[k][d];
+      vs[0] += kappa * g.volume * dot, vs[1] += kappa * g.volume * l2;
+    }
     const PetscReal f2 = FluxTerm(dim, X, g, &r.flux[c * nb], w, kappa), o2 = r.oscillation[c] * r.oscillation[c];
     cellEta2[c] += f2 + n2 + o2;
-    const PetscReal fo = std::sqrt(f2) + r.oscillation[c], fho = std::sqrt(FluxTerm(dim, X, g, &r.flux[c * nb], wh, kappa)) + r.oscillation[c];
-    sums[kF2] += f2, sums[kN2] += n2, sums[kOsc2] += o2, sums[kFOsc2] += fo * fo, sums[kFhOsc2] += fho * fho;
+    const PetscReal fh2 = FluxTerm(dim, X, g, &r.flux[c * nb], wh, kappa);
+    const PetscReal fo = std::sqrt(f2) + r.oscillation[c], fho = std::sqrt(fh2) + r.oscillation[c];
+    sums[kF2] += f2, sums[kN2] += n2, sums[kOsc2] += o2, sums[kFOsc2] += fo * fo, sums[kFhOsc2] += fho * fho, sums[kFh2] += fh2;
   }
 }
 
-// The smaller of two guaranteed bounds of |||u - u_h|||, both from the variational inequality tested with
+// The terms the bounds are made of (global): N = |||u_h - v|||, F = ||kappa^{-1/2}(kappa grad v - sigma)||,
+// Fh = ||kappa^{-1/2}(kappa grad_h u_h - sigma)||, osc = (sum_T osc_T^2)^{1/2}, b and bh (cell by cell, see
+// Bound), gamma the contact term.
+struct BoundTerms {
+  PetscReal N, F, Fh, osc, b, bh, gamma;
+};
+
+// Bound 3 (see Bound): the largest min(E + N, S + Fh) over the (E, S) >= 0 with E <= Emax and
+// (E - osc)^2 + S^2 <= G2 + osc^2 (G2 = F^2 + 2 gamma). On that disc's edge S + Fh = c(E) = sqrt(G2 + 2 osc E -
+// E^2) + Fh is concave in E with its top at E = osc, and E + N rises: if c <= E + N at the top, the top is the
+// answer; otherwise the answer is E + N where the two meet to the right of the top (the larger root of
+// (E + N - Fh)^2 = G2 + 2 osc E - E^2 with E + N - Fh >= 0), or at Emax if they do not meet before it.
+// (Checked against a brute-force maximisation on random terms while writing it.)
+PetscReal FluxErrorBound(const BoundTerms &t, PetscReal gamma, PetscReal Emax)
+{
+  const PetscReal G2 = t.F * t.F + 2 * gamma, o = t.osc;
+  Emax                   = std::min(Emax, o + std::sqrt(o * o + G2)); // beyond it, no S >= 0 is left
+  const PetscReal top    = std::min(o, Emax);
+  const PetscReal cTop   = std::sqrt(std::max(G2 + 2 * o * top - top * top, (PetscReal)0)) + t.Fh;
+  if (cTop <= top + t.N) return cTop;
+  const PetscReal p = t.N - t.Fh, disc = (p - o) * (p - o) - 2 * (p * p - G2);
+  const PetscReal E = disc < 0 ? Emax : std::min(Emax, std::max({top, -p, (o - p + std::sqrt(disc)) / 2}));
+  return E + t.N;
+}
+
+// The smallest of three guaranteed bounds of |||u - u_h|||, all from the variational inequality tested with
 // v (see estimate.h for the assumptions), N = |||u_h - v|||, gamma the contact term:
 //  1. estimate.h's: E = |||u - v||| <= (b + sqrt(b^2 + 4 gamma)) / 2 with b = F + osc, and |||u - u_h||| <= N + E.
 //  2. With e = u - u_h: |||e|||^2 = (kappa grad_h e, grad(u - v)) + (kappa grad_h e, grad_h(v - u_h)); the second
@@ -220,13 +259,27 @@ void CellTerms(const Space &space, const System &sys, const Reconstruction &r, c
 //     a = N + bh, c = bh N + gamma: |||e||| <= (a + sqrt(a^2 + 4 c)) / 2. sigma is close to kappa grad_h u_h
 //     (for CR it differs by the load term only), so bh is of the size of osc, and 2. is about N + 2 bh where
 //     1. is about 2 N (F and N both measure how far v is from u_h). For P1 (N = 0) both are the same.
+//  3. The primal-dual split (Prager-Synge for the inequality): with S = ||kappa^{-1/2}(kappa grad u - sigma)||
+//     (the flux's own error), kappa^{-1/2}(kappa grad v - sigma) = kappa^{1/2} grad(v - u) + kappa^{-1/2}(kappa
+//     grad u - sigma), so F^2 = E^2 + S^2 + 2 X, X = (grad(v - u), kappa grad u - sigma). The inequality
+//     tested with v in K gives (kappa grad u, grad(v - u)) >= (f, v - u) + (g, v - u)_N, and Green's formula
+//     with div sigma = -Pi_0 f, sigma.n = Pi_0 g on Gamma_N and v - u = 0 on Gamma_D gives (sigma, grad(v - u))
+//     = (Pi_0 f, v - u) + (Pi_0 g, v - u)_N + (sigma.n, v - u)_C. So X >= (f - Pi_0 f, v - u) + (g - Pi_0 g,
+//     v - u)_N - (sigma.n, v - psi)_C + (sigma.n, u - psi)_C >= -osc E - gamma (sigma.n >= 0, u >= psi on
+//     Gamma_C; the oscillation as in estimate.h), i.e. E^2 + S^2 <= F^2 + 2 gamma + 2 osc E. The broken
+//     gradient of the error is kappa^{-1/2}(kappa grad u - sigma) + kappa^{-1/2}(sigma - kappa grad_h u_h),
+//     so |||e||| <= S + Fh, and |||e||| <= E + N as in 1.: |||e||| <= max min(E + N, S + Fh) over the (E, S)
+//     allowed (FluxErrorBound), E <= the E of 1. too. Where v is close to u_h (F about N, Fh small), E and S
+//     cannot both be large: the bound is about max(N, F) instead of the 2 N of 1. and the N + 2 bh of 2.
+//     For P1 (Fh = F, N = 0) it is never below 1.
 // b and bh combine flux and oscillation cell by cell (sum_T (F_T + osc_T) |||w|||_T <= b |||w|||), which is
 // at most F + osc. gamma < 0 only where psi is not affine on a face (v >= psi at the vertices only): the
 // bound then holds up to that data approximation, and gamma counts as 0.
-PetscReal Bound(PetscReal N, PetscReal b, PetscReal bh, PetscReal contact)
+PetscReal Bound(const BoundTerms &t)
 {
-  const PetscReal gamma = std::max(contact, (PetscReal)0), a = N + bh, c = bh * N + gamma;
-  return std::min(N + (b + std::sqrt(b * b + 4 * gamma)) / 2, (a + std::sqrt(a * a + 4 * c)) / 2);
+  const PetscReal gamma = std::max(t.gamma, (PetscReal)0), a = t.N + t.bh, c = t.bh * t.N + gamma;
+  const PetscReal E     = (t.b + std::sqrt(t.b * t.b + 4 * gamma)) / 2;
+  return std::min({t.N + E, (a + std::sqrt(a * a + 4 * c)) / 2, FluxErrorBound(t, gamma, E)});
 }
 
 // From the quadratic inequality E^2 <= b E + gamma (estimate.h), E^2 <= b^2 + 2 gamma, so the cell
@@ -241,23 +294,31 @@ PetscErrorCode EstimateFromReconstruction(const Space &space, const Problem &pro
   std::string        error;
   PetscReal          sums[kNumSums] = {0};
   PetscFunctionBeginUser;
-  e.cellEta2.assign(space.NumCells(), 0.0);
   PetscCall(DMGetLocalVector(space.dm, &loc));
   PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, loc));
   PetscCall(VecGetArrayRead(loc, &a));
   if (r.oscillation.empty()) PetscCall(CellOscillation(space, problem, sys, r.oscillation, error));
   AddNeumannOscillation(space, problem, sys, r.oscillation, error);
-  sums[kGamma] = ContactTerm(space, problem, sys, r, a, e.cellEta2, error);
-  CellTerms(space, sys, r, a, e.cellEta2, sums);
+  PetscCall(CheckAll(comm, error.empty(), error));
+  std::vector<PetscReal> vertexSums(r.companion.empty() ? 0 : 2 * r.companion.size(), 0.0);
+  for (bool again = true; again;) { // a second time when ImproveCompanion changed v
+    e.cellEta2.assign(space.NumCells(), 0.0);
+    std::fill(sums, sums + kNumSums, 0.0);
+    sums[kGamma] = ContactTerm(space, problem, sys, r, a, e.cellEta2, error);
+    CellTerms(space, sys, r, a, e.cellEta2, sums, vertexSums.empty() ? nullptr : &vertexSums);
+    PetscCall(CheckAll(comm, error.empty(), error));
+    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, sums, kNumSums, MPIU_REAL, MPI_SUM, comm));
+    again = false;
+    if (!vertexSums.empty()) PetscCall(ImproveCompanion(space, sys, vertexSums, sums[kN2], r, again));
+    vertexSums.clear();
+  }
   PetscCall(VecRestoreArrayRead(loc, &a));
   PetscCall(DMRestoreLocalVector(space.dm, &loc));
-  PetscCall(CheckAll(comm, error.empty(), error));
-  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, sums, kNumSums, MPIU_REAL, MPI_SUM, comm));
   e.flux          = std::sqrt(sums[kF2]);
   e.nonconformity = std::sqrt(sums[kN2]);
   e.oscillation   = std::sqrt(sums[kOsc2]);
   e.contact       = sums[kGamma];
-  e.eta           = Bound(e.nonconformity, std::sqrt(sums[kFOsc2]), std::sqrt(sums[kFhOsc2]), e.contact);
+  e.eta           = Bound({e.nonconformity, e.flux, std::sqrt(sums[kFh2]), e.oscillation, std::sqrt(sums[kFOsc2]), std::sqrt(sums[kFhOsc2]), e.contact});
   PetscFunctionReturn(0);
 }
 } // namespace

@@ -3,6 +3,7 @@
 #include "signorini/estimate.h"
 
 #include <algorithm>
+#include <cmath>
 
 namespace signorini {
 
@@ -11,20 +12,23 @@ namespace {
 // weights kappa_T |T|, and how many Dirichlet and contact faces touch it.
 constexpr int kVertexData = 4;
 
-// Sums the kVertexData values of every vertex over the ranks that hold a copy: onto the owner, then back.
-PetscErrorCode SumOverRanks(const Space &space, std::vector<PetscReal> &data)
+// Sums the `width` values of every vertex over the ranks that hold a copy: onto the owner, then back.
+PetscErrorCode SumOverRanks(const Space &space, PetscInt width, std::vector<PetscReal> &data)
 {
   MPI_Datatype unit;
   PetscFunctionBeginUser;
   PetscCheck(space.vertexSF, PetscObjectComm((PetscObject)space.dm), PETSC_ERR_ORDER, "the CR estimate needs the space's vertex exchange (SpaceCreate with vertexExchange)");
-  PetscCallMPI(MPI_Type_contiguous(kVertexData, MPIU_REAL, &unit));
-  PetscCallMPI(MPI_Type_commit(&unit));
+  if (width == 1) unit = MPIU_REAL; // reductions take a basic type as it is
+  else {
+    PetscCallMPI(MPI_Type_contiguous((PetscMPIInt)width, MPIU_REAL, &unit));
+    PetscCallMPI(MPI_Type_commit(&unit));
+  }
   const std::vector<PetscReal> copies(data); // the leaves' own sums; the roots accumulate in data
   PetscCall(PetscSFReduceBegin(space.vertexSF, unit, copies.data(), data.data(), MPI_SUM));
   PetscCall(PetscSFReduceEnd(space.vertexSF, unit, copies.data(), data.data(), MPI_SUM));
   PetscCall(PetscSFBcastBegin(space.vertexSF, unit, data.data(), data.data(), MPI_REPLACE));
   PetscCall(PetscSFBcastEnd(space.vertexSF, unit, data.data(), data.data(), MPI_REPLACE));
-  PetscCallMPI(MPI_Type_free(&unit));
+  if (width > 1) PetscCallMPI(MPI_Type_free(&unit));
   PetscFunctionReturn(0);
 }
 
@@ -64,7 +68,109 @@ PetscErrorCode FluxesAndVertexSums(const Space &space, const Problem &problem, c
   }
   PetscFunctionReturn(0);
 }
+
+// The cells' gradients of the barycentric coordinates scaled by (kappa_T |T|)^{1/2}, (d+1) d values a
+// cell, so that the stiffness products below make no geometry (only kept while the iterations run).
+std::vector<PetscReal> ScaledGradients(const Space &space, const System &sys)
+{
+  const PetscInt         dim = space.dim, nb = space.Nb();
+  std::vector<PetscReal> sg(space.NumCells() * nb * dim);
+  for (PetscInt c = 0; c < space.NumCells(); ++c) {
+    const Space::Coords X = space.X(c);
+    CellGeometry        g;
+    ComputeCellGeometry(dim, X, g);
+    const PetscReal s = std::sqrt(sys.Kappa(c) * g.volume);
+    for (PetscInt k = 0; k < nb; ++k)
+      for (PetscInt d = 0; d < dim; ++d) sg[(c * nb + k) * dim + d] = s * g.gradLambda[k][d];
+  }
+  return sg;
+}
+
+// y = A x: per vertex z, y_z = sum_T kappa_T |T| grad x_T . grad lambda_z over the cells at z (summed over
+// ranks; 0 where v is held, on Gamma_D), A the P1 stiffness.
+PetscErrorCode StiffnessProduct(const Space &space, const std::vector<PetscReal> &sg, const Reconstruction &r, const std::vector<PetscReal> &x, std::vector<PetscReal> &y)
+{
+  const PetscInt dim = space.dim, nb = space.Nb(), nv = (PetscInt)x.size();
+  PetscFunctionBeginUser;
+  y.assign(nv, 0.0);
+  for (PetscInt c = 0; c < space.NumCells(); ++c) {
+    const PetscInt  *vert = &space.cellVert[c * nb];
+    const PetscReal *G    = &sg[c * nb * dim];
+    PetscReal        w[3] = {0, 0, 0};
+    for (PetscInt k = 0; k < nb; ++k)
+      for (PetscInt d = 0; d < dim; ++d) w[d] += x[vert[k]] * G[k * dim + d];
+    for (PetscInt k = 0; k < nb; ++k) {
+      PetscReal dot = 0;
+      for (PetscInt d = 0; d < dim; ++d) dot += w[d] * G[k * dim + d];
+      y[vert[k]] += dot;
+    }
+  }
+  PetscCall(SumOverRanks(space, 1, y));
+  for (PetscInt v = 0; v < nv; ++v)
+    if (!r.movable[v]) y[v] = 0;
+  PetscFunctionReturn(0);
+}
 } // namespace
+
+// Brings the companion v closer to u_h where the vertex average is far from the closest conforming one, as
+// on cells of aspect ratio 1000, where the average's values at the vertices across a thin cell differ by
+// the nonconformity along its long side and N is 25 to 80 times the error. N^2 = |||u_h - v|||^2 is a
+// quadratic in the free vertex values whose Hessian is the P1 stiffness A (twice): its minimiser solves
+// A v = b with b_z = (kappa grad_h u_h, grad lambda_z); CellTerms (estimate.cpp) has summed the residual
+// r = b - A v of the average and diag A in the loop it makes anyway, so deciding costs no cell loop. The
+// preconditioned (Jacobi) conjugate gradients lower N^2 by alpha r.z at each step, monotonically. Whether
+// to run them is decided from the first residual: the first step lowers N^2 by at least r.z / (d + 1)
+// (A <= (d + 1) diag A, cell by cell), and r.z / N^2 is below 0.02 on the meshes of shape-regular cells
+// here (the average is then within 1 % of the minimum of N, not worth the extra cell loops) and about 1 on
+// the stretched ones (then the estimate's cell terms are computed again with the new v). They stop when a
+// step lowers N^2 by less than 1 % (at most 100 steps). Every iterate keeps Gamma_D's values; on Gamma_C
+// the iterates may fall below psi (holding those vertices at psi left the index of stiff-stretched-3d at
+// 3.8, letting them move and raising them to psi at the end gives 2.0), so v is raised to psi there at the
+// end, which keeps it a valid companion. The bound holds for any such v: this only makes it sharper.
+PetscErrorCode ImproveCompanion(const Space &space, const System &sys, std::vector<PetscReal> &vertexSums, PetscReal n2, Reconstruction &r, bool &improved)
+{
+  MPI_Comm               comm = PetscObjectComm((PetscObject)space.dm);
+  const PetscInt         nv   = (PetscInt)r.companion.size();
+  std::vector<PetscReal> res(nv), diag(nv), z(nv), p(nv), q;
+  PetscFunctionBeginUser;
+  improved = false;
+  PetscCall(SumOverRanks(space, 2, vertexSums));
+  for (PetscInt v = 0; v < nv; ++v) res[v] = r.movable[v] ? vertexSums[2 * v] : 0, diag[v] = vertexSums[2 * v + 1];
+  const auto Dot = [&](const std::vector<PetscReal> &a, const std::vector<PetscReal> &b, PetscReal &sum) {
+    PetscReal local = 0;
+    for (PetscInt v = 0; v < nv; ++v)
+      if (r.owned[v]) local += a[v] * b[v];
+    return MPI_Allreduce(&local, &sum, 1, MPIU_REAL, MPI_SUM, comm);
+  };
+  const auto Precondition = [&]() {
+    for (PetscInt v = 0; v < nv; ++v) z[v] = diag[v] > 0 ? res[v] / diag[v] : 0;
+  };
+  Precondition();
+  PetscReal rz;
+  PetscCallMPI(Dot(res, z, rz));
+  if (!(rz > 0.1 * n2)) PetscFunctionReturn(0);
+  p = z;
+  const std::vector<PetscReal> sg = ScaledGradients(space, sys);
+  PetscInt                     steps = 0;
+  while (steps < 100) {
+    PetscReal pq, rzNext;
+    PetscCall(StiffnessProduct(space, sg, r, p, q));
+    PetscCallMPI(Dot(p, q, pq));
+    if (!(pq > 0)) break;
+    const PetscReal alpha = rz / pq;
+    for (PetscInt v = 0; v < nv; ++v) r.companion[v] += alpha * p[v], res[v] -= alpha * q[v];
+    n2 -= alpha * rz;
+    if (++steps, alpha * rz < 0.01 * n2) break;
+    Precondition();
+    PetscCallMPI(Dot(res, z, rzNext));
+    for (PetscInt v = 0; v < nv; ++v) p[v] = z[v] + rzNext / rz * p[v];
+    rz = rzNext;
+  }
+  for (PetscInt v = 0; v < nv; ++v) r.companion[v] = std::max(r.companion[v], r.lower[v]);
+  improved = true;
+  PetscCall(PetscInfo(space.dm, "CR estimate: %d conjugate-gradient steps towards the closest companion, N^2 %g\n", (int)steps, (double)n2));
+  PetscFunctionReturn(0);
+}
 
 PetscErrorCode ReconstructCR(const Space &space, const Problem &problem, const System &sys, Vec u, Reconstruction &r)
 {
@@ -104,16 +210,24 @@ PetscErrorCode ReconstructCR(const Space &space, const Problem &problem, const S
   PetscCall(PetscInfo(space.dm, "CR estimate: %d negative contact fluxes beyond round-off set to 0\n", (int)clipped));
 
   // v: the weighted average of u_h over the cells at each vertex (over all ranks), u_D on Gamma_D, raised to psi on
-  // Gamma_C (Gamma_D wins where the two meet, where psi <= u_D: SpaceCreate checks it).
-  PetscCall(SumOverRanks(space, vdata));
+  // Gamma_C (Gamma_D wins where the two meet, where psi <= u_D: SpaceCreate checks it); then improved where
+  // that pays (ImproveCompanion).
+  PetscCall(SumOverRanks(space, kVertexData, vdata));
   r.companion.resize(nv);
+  r.lower.assign(nv, PETSC_MIN_REAL);
+  r.movable.assign(nv, 1);
+  r.owned.assign(nv, 1);
   for (PetscInt v = 0; v < nv; ++v) {
     const PetscReal *d = &vdata[kVertexData * v], *x = &space.vertX[v * dim];
     r.companion[v]     = d[1] > 0 ? d[0] / d[1] : 0.0;
-    if (d[2] > 0) r.companion[v] = problem.uD->Scalar(x, dim, error);
-    else if (d[3] > 0) r.companion[v] = std::max(r.companion[v], problem.psi->Scalar(x, dim, error));
+    if (d[2] > 0) r.companion[v] = problem.uD->Scalar(x, dim, error), r.movable[v] = 0;
+    else if (d[3] > 0) r.lower[v] = problem.psi->Scalar(x, dim, error), r.companion[v] = std::max(r.companion[v], r.lower[v]);
   }
   PetscCall(CheckAll(comm, error.empty(), error));
+  PetscInt        nleaves;
+  const PetscInt *leaves;
+  PetscCall(PetscSFGetGraph(space.vertexSF, NULL, &nleaves, &leaves, NULL));
+  for (PetscInt l = 0; l < nleaves; ++l) r.owned[leaves ? leaves[l] : l] = 0;
   PetscFunctionReturn(0);
 }
 
