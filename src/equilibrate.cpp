@@ -94,8 +94,9 @@ void RT0MassDiagonal(PetscInt dim, const PetscReal *X, PetscReal volume, PetscRe
 
 bool Contains(const std::vector<PetscInt> &parts, PetscInt p) { return std::find(parts.begin(), parts.end(), p) != parts.end(); }
 
-// The loads by the assembly's rules (AssembleCells, AssembleNeumann), per vertex of each cell.
-PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, CellData &cd)
+// The loads by the assembly's rules (AssembleCells, AssembleNeumann), per vertex of each cell, and the
+// cells' oscillations that come with them.
+PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, CellData &cd, std::vector<PetscReal> &oscillation)
 {
   const PetscInt nb = space.Nb(), dim = space.dim, nc = space.NumCells();
   std::string    error;
@@ -106,7 +107,8 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
   cd.load.assign(nc * nb, 0.0);
   cd.volume.resize(nc);
   cd.kind.assign(nc * nb, kFaceOther);
-  const bool zeroLoad = problem.f->IsZero();
+  oscillation.resize(nc);
+  std::vector<PetscReal> work;
   for (PetscInt c = 0; c < nc; ++c) {
     CellGeometry        g;
     const Space::Coords X = space.X(c);
@@ -122,14 +124,10 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
       for (PetscInt d = 0; d < dim; ++d) dot += kap * G[d] * g.gradLambda[j][d];
       cd.target[c * nb + j] = -g.volume * dot;
     }
-    if (zeroLoad) continue;
-    problem.f->SetCellSet(space.CellSet(c));
-    for (PetscInt q = 0; q < sys.cellRule.Size(); ++q) {
-      const PetscReal *lq = sys.cellRule.Point(q);
-      SimplexPoint(dim, X, lq, x);
-      const PetscReal fq = problem.f->Scalar(x, dim, error) * sys.cellRule.weights[q] * g.volume;
-      for (PetscInt k = 0; k < nb; ++k) cd.load[c * nb + k] += fq * lq[k];
-    }
+    CellLoad load;
+    GetCellLoad(space, problem, sys, c, X, g, work, load, error);
+    for (PetscInt k = 0; k < nb; ++k) cd.load[c * nb + k] = load.moment[k];
+    oscillation[c] = load.oscillation;
   }
   for (const BoundaryFace &bf : space.boundary) {
     const PetscInt at = bf.cell * nb + bf.opposite;
@@ -408,7 +406,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscCall(DMGetLocalVector(space.dm, &loc));
   PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, loc));
   PetscCall(VecGetArrayRead(loc, &ua));
-  PetscCall(ComputeCellData(space, problem, sys, ua, cd));
+  PetscCall(ComputeCellData(space, problem, sys, ua, cd, r.oscillation));
   PetscCall(VecRestoreArrayRead(loc, &ua));
 
   // Local cells per vertex (CSR), and which vertices have cells on other ranks too (their count summed
