@@ -81,8 +81,9 @@ PetscReal SimplexDiameter(PetscInt dim, const PetscReal *X)
   return std::sqrt(h2);
 }
 
-// The one evaluation of f on a cell (CellLoad); range, where given, records the values for the underflow check.
-static void ComputeCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, LoadRange *range, std::string &error)
+// The one evaluation of f on a cell (CellLoad), the oscillation only when asked for (else 0); range, where
+// given, records the values for the underflow check.
+static void ComputeCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, bool oscillation, LoadRange *range, std::string &error)
 {
   const PetscInt    dim  = space.dim;
   const Quadrature &rule = sys.cellRule;
@@ -107,6 +108,7 @@ static void ComputeCellLoad(const Space &space, const Problem &problem, const Sy
     total += fq;
     for (PetscInt k = 0; k <= dim; ++k) load.moment[k] += fq * lambda[k];
   }
+  if (!oscillation) return;
   const PetscReal mean = total / g.volume;
   PetscReal       dev2 = 0;
   for (PetscInt q = 0; q < rule.Size(); ++q) dev2 += rule.weights[q] * (work[q] - mean) * (work[q] - mean);
@@ -117,7 +119,7 @@ static void ComputeCellLoad(const Space &space, const Problem &problem, const Sy
 void GetCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, std::string &error)
 {
   const PetscInt n = space.dim + 2;
-  if (sys.cellLoads.empty()) return ComputeCellLoad(space, problem, sys, c, X, g, work, load, nullptr, error);
+  if (sys.cellLoads.empty()) return ComputeCellLoad(space, problem, sys, c, X, g, work, load, true, nullptr, error);
   const PetscReal *kept = &sys.cellLoads[c * n];
   std::copy(kept, kept + n - 1, load.moment);
   load.oscillation = kept[n - 1];
@@ -145,7 +147,7 @@ static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, 
     ElementStiffness(space, c, sys.Kappa(c), g, Ke);
     PetscCall(MatSetValuesLocal(sys.A, nb, space.Dofs(c), nb, space.Dofs(c), Ke, ADD_VALUES));
     if (zeroLoad) continue;
-    ComputeCellLoad(space, problem, sys, c, X, g, work, cl, &range, error);
+    ComputeCellLoad(space, problem, sys, c, X, g, work, cl, keepLoads, &range, error);
     // b_i = int_T f phi_i = sum_k moment_k phi_i(X_k): phi_i is affine.
     for (PetscInt i = 0; i < nb; ++i) {
       PetscReal bi = 0;

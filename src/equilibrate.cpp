@@ -172,28 +172,35 @@ void FillCorner(const Space &space, const CellData &cd, const PetscInt *gidx, Pe
 }
 
 // Solves L z = b in place (z in b) for L symmetric positive definite, row-major N x N, by Cholesky's
-// factorisation (lower triangle overwritten). Returns false if L is not positive definite.
-bool SolveSPD(PetscInt N, PetscReal *L, PetscReal *b)
+// factorisation (lower triangle overwritten; col: scratch of N reals). Returns false if L is not positive
+// definite. Every loop is ordered so that its inner updates are independent of each other (outer
+// products, not dot products: a dot product's sum waits for each term, as the compiler may not reorder
+// it), and the update by a zero of the factor is skipped: the patch matrices are sparse graph Laplacians
+// (at most 4 entries a row), and much of their factor stays zero.
+bool SolveSPD(PetscInt N, PetscReal *L, PetscReal *b, PetscReal *col)
 {
   for (PetscInt k = 0; k < N; ++k) {
-    PetscReal d = L[k * N + k];
-    for (PetscInt j = 0; j < k; ++j) d -= L[k * N + j] * L[k * N + j];
+    const PetscReal d = L[k * N + k];
     if (!(d > 0)) return false;
-    L[k * N + k]        = std::sqrt(d);
-    const PetscReal inv = 1.0 / L[k * N + k];
+    const PetscReal r = std::sqrt(d), inv = 1.0 / r;
+    L[k * N + k]      = r;
+    for (PetscInt i = k + 1; i < N; ++i) col[i] = L[i * N + k] *= inv;
     for (PetscInt i = k + 1; i < N; ++i) {
-      PetscReal s = L[i * N + k];
-      for (PetscInt j = 0; j < k; ++j) s -= L[i * N + j] * L[k * N + j];
-      L[i * N + k] = s * inv;
+      const PetscReal lik = col[i];
+      if (lik == 0) continue;
+      PetscReal *Li = &L[i * N];
+      for (PetscInt j = k + 1; j <= i; ++j) Li[j] -= lik * col[j];
     }
   }
-  for (PetscInt i = 0; i < N; ++i) { // L y = b
-    for (PetscInt j = 0; j < i; ++j) b[i] -= L[i * N + j] * b[j];
-    b[i] /= L[i * N + i];
+  for (PetscInt j = 0; j < N; ++j) { // L y = b, by columns
+    b[j] /= L[j * N + j];
+    if (b[j] == 0) continue;
+    for (PetscInt i = j + 1; i < N; ++i) b[i] -= L[i * N + j] * b[j];
   }
-  for (PetscInt i = N - 1; i >= 0; --i) { // L^T z = y
-    for (PetscInt j = i + 1; j < N; ++j) b[i] -= L[j * N + i] * b[j];
+  for (PetscInt i = N - 1; i >= 0; --i) { // L^T z = y, by rows of L
     b[i] /= L[i * N + i];
+    const PetscReal *Li = &L[i * N];
+    for (PetscInt j = 0; j < i; ++j) b[j] -= Li[j] * b[i];
   }
   return true;
 }
@@ -365,7 +372,8 @@ private:
       for (size_t k = i > 0 ? i - 1 : 0; k < std::min(i + 2, sides_.size()); ++k)
         if (sides_[k].unknown == s.unknown && sides_[k].entry < rows) L_[s.entry * rows + sides_[k].entry] += s.sign * sides_[k].sign / h_[s.unknown];
     }
-    if (!SolveSPD(rows, L_.data(), mu_.data())) return false;
+    col_.resize(rows);
+    if (!SolveSPD(rows, L_.data(), mu_.data(), col_.data())) return false;
     for (PetscInt u = 0; u < m; ++u) x_[u] = c_[u];
     for (const Side &s : sides_)
       if (s.entry < rows) x_[s.unknown] -= s.sign * mu_[s.entry];
@@ -385,7 +393,7 @@ private:
   bool                   boundaryUnknown_ = false;
   std::vector<Key>       keys_;
   std::vector<PetscInt>  table_, partner_;
-  std::vector<PetscReal> x_, h_, c_, L_, mu_, fixed_, rhs_, resid_;
+  std::vector<PetscReal> x_, h_, c_, L_, mu_, col_, fixed_, rhs_, resid_;
 };
 
 } // namespace
@@ -393,10 +401,12 @@ private:
 PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const System &sys, Vec u, Reconstruction &r)
 {
   MPI_Comm             comm = PetscObjectComm((PetscObject)space.dm);
-  static PetscLogEvent event = 0;
+  static PetscLogEvent event = 0, cellEvent = 0, patchEvent = 0; // -log_view: the whole, its cell loop, its local patches
   PetscFunctionBeginUser;
   PetscCheck(space.element == Element::P1, comm, PETSC_ERR_ARG_WRONG, "ReconstructP1 needs the P1 space");
   if (!event) PetscCall(PetscLogEventRegister("ReconstructP1", DM_CLASSID, &event));
+  if (!cellEvent) PetscCall(PetscLogEventRegister("P1CellData", DM_CLASSID, &cellEvent));
+  if (!patchEvent) PetscCall(PetscLogEventRegister("P1LocalPatches", DM_CLASSID, &patchEvent));
   PetscCall(PetscLogEventBegin(event, 0, 0, 0, 0));
   const PetscInt nb = space.Nb(), nc = space.NumCells(), nv = space.numLocal;
 
@@ -406,7 +416,9 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscCall(DMGetLocalVector(space.dm, &loc));
   PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, loc));
   PetscCall(VecGetArrayRead(loc, &ua));
+  PetscCall(PetscLogEventBegin(cellEvent, 0, 0, 0, 0));
   PetscCall(ComputeCellData(space, problem, sys, ua, cd, r.oscillation));
+  PetscCall(PetscLogEventEnd(cellEvent, 0, 0, 0, 0));
   PetscCall(VecRestoreArrayRead(loc, &ua));
 
   // Local cells per vertex (CSR), and which vertices have cells on other ranks too (their count summed
@@ -449,6 +461,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   std::vector<PetscReal> out;
   Patch                  patch(space.dim);
   // Patches on this rank alone.
+  PetscCall(PetscLogEventBegin(patchEvent, 0, 0, 0, 0));
   for (PetscInt v = 0; v < nv && ok; ++v) {
     if (shared[v] || start[v + 1] == start[v]) continue;
     const PetscInt n = start[v + 1] - start[v];
@@ -459,6 +472,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
     for (PetscInt e = 0; e < n && ok; ++e)
       for (PetscInt j = 0; j < nb; ++j) r.flux[(list[start[v] + e] / nb) * nb + j] += out[e * nb + j];
   }
+  PetscCall(PetscLogEventEnd(patchEvent, 0, 0, 0, 0));
 
   // Patches across ranks: gather their corners on the vertex's owner, solve there, scatter back.
   std::vector<PetscInt>    leafAt;
