@@ -458,19 +458,35 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   r.companion.clear();
   bool                   ok = true;
   std::vector<Corner>    corners;
+  std::vector<PetscInt>  cells;
   std::vector<PetscReal> out;
   Patch                  patch(space.dim);
-  // Patches on this rank alone.
+  // Patches on this rank alone, in the order in which the cells first reach their vertices: the cells of
+  // consecutive patches then lie close in memory, where the vertex order may scatter them (a mesh refined
+  // in levels numbers cells and vertices by different rules), which made the patches' reads of the cell
+  // data and writes of the fluxes wait for memory.
   PetscCall(PetscLogEventBegin(patchEvent, 0, 0, 0, 0));
-  for (PetscInt v = 0; v < nv && ok; ++v) {
-    if (shared[v] || start[v + 1] == start[v]) continue;
-    const PetscInt n = start[v + 1] - start[v];
+  std::vector<PetscInt> order;
+  {
+    std::vector<char> seen(nv, 0);
+    order.reserve(nv);
+    for (PetscInt i = 0; i < nc * nb; ++i)
+      if (!seen[space.cellVert[i]]) seen[space.cellVert[i]] = 1, order.push_back(space.cellVert[i]);
+  }
+  for (const PetscInt v : order) {
+    if (!ok) break;
+    if (shared[v]) continue;
+    const PetscInt n = start[v + 1] - start[v], *at = &list[start[v]]; // at[e] = c * nb + corner
     corners.resize(n);
+    cells.resize(n);
     out.resize(n * nb);
-    for (PetscInt e = 0; e < n; ++e) FillCorner(space, cd, gidx, list[start[v] + e] / nb, list[start[v] + e] % nb, corners[e]);
+    for (PetscInt e = 0; e < n; ++e) {
+      cells[e] = at[e] / nb;
+      FillCorner(space, cd, gidx, cells[e], at[e] - cells[e] * nb, corners[e]);
+    }
     ok = patch.Solve(space.kindLocal[v], corners.data(), n, out.data());
     for (PetscInt e = 0; e < n && ok; ++e)
-      for (PetscInt j = 0; j < nb; ++j) r.flux[(list[start[v] + e] / nb) * nb + j] += out[e * nb + j];
+      for (PetscInt j = 0; j < nb; ++j) r.flux[cells[e] * nb + j] += out[e * nb + j];
   }
   PetscCall(PetscLogEventEnd(patchEvent, 0, 0, 0, 0));
 
