@@ -69,30 +69,95 @@ static PetscErrorCode CellCoefficients(const Space &space, const Problem &proble
   PetscFunctionReturn(0);
 }
 
-// Cell loop: stiffness into A, f-load into the local load vector.
-static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, System &sys, PetscScalar *load, LoadRange &range, std::string &error)
+PetscReal SimplexDiameter(PetscInt dim, const PetscReal *X)
 {
-  const PetscInt nb = space.Nb();
-  PetscReal      Ke[16], be[4], x[3];
+  PetscReal h2 = 0;
+  for (PetscInt i = 0; i <= dim; ++i)
+    for (PetscInt j = i + 1; j <= dim; ++j) {
+      PetscReal l2 = 0;
+      for (PetscInt d = 0; d < dim; ++d) l2 += (X[i * dim + d] - X[j * dim + d]) * (X[i * dim + d] - X[j * dim + d]);
+      h2 = std::max(h2, l2);
+    }
+  return std::sqrt(h2);
+}
+
+// The one evaluation of f on a cell (CellLoad), the oscillation only when asked for (else 0); range, where
+// given, records the values for the underflow check.
+static void ComputeCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, bool oscillation, LoadRange *range, std::string &error)
+{
+  const PetscInt    dim  = space.dim;
+  const Quadrature &rule = sys.cellRule;
+  PetscReal         x[3];
+  load.oscillation       = 0;
+  if (problem.f->IsConstant()) { // one value, no parser, no oscillation
+    const PetscReal f = problem.f->Scalar(g.centroid, dim, error), share = f * g.volume / (dim + 1);
+    for (PetscInt k = 0; k <= dim; ++k) load.moment[k] = share;
+    if (range) range->Record(*problem.f, f, share, g.centroid, dim);
+    return;
+  }
+  problem.f->SetCellSet(space.CellSet(c));
+  work.resize(rule.Size());
+  PetscReal total = 0;
+  for (PetscInt k = 0; k <= dim; ++k) load.moment[k] = 0;
+  for (PetscInt q = 0; q < rule.Size(); ++q) {
+    const PetscReal *lambda = rule.Point(q);
+    SimplexPoint(dim, X, lambda, x);
+    work[q]            = problem.f->Scalar(x, dim, error);
+    const PetscReal fq = work[q] * rule.weights[q] * g.volume;
+    if (range) range->Record(*problem.f, work[q], fq, x, dim);
+    total += fq;
+    for (PetscInt k = 0; k <= dim; ++k) load.moment[k] += fq * lambda[k];
+  }
+  if (!oscillation) return;
+  const PetscReal mean = total / g.volume;
+  PetscReal       dev2 = 0;
+  for (PetscInt q = 0; q < rule.Size(); ++q) dev2 += rule.weights[q] * (work[q] - mean) * (work[q] - mean);
+  // Poincare on a convex cell: ||w - w_T||_T <= h_T / pi ||grad w||_T.
+  load.oscillation = SimplexDiameter(dim, X) / M_PI * std::sqrt(dev2 * g.volume / sys.Kappa(c));
+}
+
+void GetCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, std::string &error)
+{
+  const PetscInt n = space.dim + 2;
+  if (sys.cellLoads.empty()) return ComputeCellLoad(space, problem, sys, c, X, g, work, load, true, nullptr, error);
+  const PetscReal *kept = &sys.cellLoads[c * n];
+  std::copy(kept, kept + n - 1, load.moment);
+  load.oscillation = kept[n - 1];
+}
+
+// Cell loop: stiffness into A, f-load into the local load vector, and each cell's load into
+// sys.cellLoads when they are kept.
+static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, bool keepLoads, System &sys, PetscScalar *load, LoadRange &range, std::string &error)
+{
+  const PetscInt         nb = space.Nb(), dim = space.dim;
+  PetscReal              Ke[16], phi[4][4], vertex[4];
+  std::vector<PetscReal> work;
   PetscFunctionBeginUser;
   const bool zeroLoad = problem.f->IsZero();
+  for (PetscInt k = 0; k <= dim; ++k) { // phi[i][k] = phi_i(X_k), the same on every cell
+    for (PetscInt j = 0; j <= dim; ++j) vertex[j] = j == k;
+    for (PetscInt i = 0; i < nb; ++i) phi[i][k] = space.BasisValue(0, i, vertex);
+  }
+  sys.cellLoads.assign(keepLoads ? space.NumCells() * (dim + 2) : 0, 0.0);
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
     CellGeometry        g;
+    CellLoad            cl;
     const Space::Coords X = space.X(c); // gathered once: every quadrature point needs it
-    ComputeCellGeometry(space.dim, X, g);
+    ComputeCellGeometry(dim, X, g);
     ElementStiffness(space, c, sys.Kappa(c), g, Ke);
     PetscCall(MatSetValuesLocal(sys.A, nb, space.Dofs(c), nb, space.Dofs(c), Ke, ADD_VALUES));
     if (zeroLoad) continue;
-    std::fill(be, be + nb, 0.0);
-    problem.f->SetCellSet(space.CellSet(c));
-    for (PetscInt q = 0; q < sys.cellRule.Size(); ++q) {
-      const PetscReal *lambda = sys.cellRule.Point(q);
-      SimplexPoint(space.dim, X, lambda, x);
-      const PetscReal fx = problem.f->Scalar(x, space.dim, error), fq = fx * sys.cellRule.weights[q] * g.volume;
-      range.Record(*problem.f, fx, fq, x, space.dim);
-      for (PetscInt i = 0; i < nb; ++i) be[i] += fq * space.BasisValue(c, i, lambda);
+    ComputeCellLoad(space, problem, sys, c, X, g, work, cl, keepLoads, &range, error);
+    // b_i = int_T f phi_i = sum_k moment_k phi_i(X_k): phi_i is affine.
+    for (PetscInt i = 0; i < nb; ++i) {
+      PetscReal bi = 0;
+      for (PetscInt k = 0; k <= dim; ++k) bi += cl.moment[k] * phi[i][k];
+      load[space.Dofs(c)[i]] += bi;
     }
-    for (PetscInt i = 0; i < nb; ++i) load[space.Dofs(c)[i]] += be[i];
+    if (!keepLoads) continue;
+    PetscReal *kept = &sys.cellLoads[c * (dim + 2)];
+    std::copy(cl.moment, cl.moment + dim + 1, kept);
+    kept[dim + 1] = cl.oscillation;
   }
   PetscFunctionReturn(0);
 }
@@ -164,7 +229,7 @@ PetscErrorCode AssembleSystem(const Space &space, const Problem &problem, const 
   PetscCall(VecGetArray(loc, &a));
   PetscCall(PetscLogEventBegin(cellLoop, 0, 0, 0, 0));
   LoadRange range;
-  PetscCall(AssembleCells(space, problem, sys, a, range, error));
+  PetscCall(AssembleCells(space, problem, opts.keepCellLoads, sys, a, range, error));
   if (problem.HasNeumann()) AssembleNeumann(space, problem, sys, a, range, error);
   PetscReal maxes[2] = {range.maxValue, range.maxIntegrand};
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, maxes, 2, MPIU_REAL, MPI_MAX, comm));

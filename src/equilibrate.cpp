@@ -94,8 +94,9 @@ void RT0MassDiagonal(PetscInt dim, const PetscReal *X, PetscReal volume, PetscRe
 
 bool Contains(const std::vector<PetscInt> &parts, PetscInt p) { return std::find(parts.begin(), parts.end(), p) != parts.end(); }
 
-// The loads by the assembly's rules (AssembleCells, AssembleNeumann), per vertex of each cell.
-PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, CellData &cd)
+// The loads by the assembly's rules (AssembleCells, AssembleNeumann), per vertex of each cell, and the
+// cells' oscillations that come with them.
+PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, CellData &cd, std::vector<PetscReal> &oscillation)
 {
   const PetscInt nb = space.Nb(), dim = space.dim, nc = space.NumCells();
   std::string    error;
@@ -106,7 +107,8 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
   cd.load.assign(nc * nb, 0.0);
   cd.volume.resize(nc);
   cd.kind.assign(nc * nb, kFaceOther);
-  const bool zeroLoad = problem.f->IsZero();
+  oscillation.resize(nc);
+  std::vector<PetscReal> work;
   for (PetscInt c = 0; c < nc; ++c) {
     CellGeometry        g;
     const Space::Coords X = space.X(c);
@@ -122,14 +124,10 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
       for (PetscInt d = 0; d < dim; ++d) dot += kap * G[d] * g.gradLambda[j][d];
       cd.target[c * nb + j] = -g.volume * dot;
     }
-    if (zeroLoad) continue;
-    problem.f->SetCellSet(space.CellSet(c));
-    for (PetscInt q = 0; q < sys.cellRule.Size(); ++q) {
-      const PetscReal *lq = sys.cellRule.Point(q);
-      SimplexPoint(dim, X, lq, x);
-      const PetscReal fq = problem.f->Scalar(x, dim, error) * sys.cellRule.weights[q] * g.volume;
-      for (PetscInt k = 0; k < nb; ++k) cd.load[c * nb + k] += fq * lq[k];
-    }
+    CellLoad load;
+    GetCellLoad(space, problem, sys, c, X, g, work, load, error);
+    for (PetscInt k = 0; k < nb; ++k) cd.load[c * nb + k] = load.moment[k];
+    oscillation[c] = load.oscillation;
   }
   for (const BoundaryFace &bf : space.boundary) {
     const PetscInt at = bf.cell * nb + bf.opposite;
@@ -174,28 +172,35 @@ void FillCorner(const Space &space, const CellData &cd, const PetscInt *gidx, Pe
 }
 
 // Solves L z = b in place (z in b) for L symmetric positive definite, row-major N x N, by Cholesky's
-// factorisation (lower triangle overwritten). Returns false if L is not positive definite.
-bool SolveSPD(PetscInt N, PetscReal *L, PetscReal *b)
+// factorisation (lower triangle overwritten; col: scratch of N reals). Returns false if L is not positive
+// definite. Every loop is ordered so that its inner updates are independent of each other (outer
+// products, not dot products: a dot product's sum waits for each term, as the compiler may not reorder
+// it), and the update by a zero of the factor is skipped: the patch matrices are sparse graph Laplacians
+// (at most 4 entries a row), and much of their factor stays zero.
+bool SolveSPD(PetscInt N, PetscReal *L, PetscReal *b, PetscReal *col)
 {
   for (PetscInt k = 0; k < N; ++k) {
-    PetscReal d = L[k * N + k];
-    for (PetscInt j = 0; j < k; ++j) d -= L[k * N + j] * L[k * N + j];
+    const PetscReal d = L[k * N + k];
     if (!(d > 0)) return false;
-    L[k * N + k]        = std::sqrt(d);
-    const PetscReal inv = 1.0 / L[k * N + k];
+    const PetscReal r = std::sqrt(d), inv = 1.0 / r;
+    L[k * N + k]      = r;
+    for (PetscInt i = k + 1; i < N; ++i) col[i] = L[i * N + k] *= inv;
     for (PetscInt i = k + 1; i < N; ++i) {
-      PetscReal s = L[i * N + k];
-      for (PetscInt j = 0; j < k; ++j) s -= L[i * N + j] * L[k * N + j];
-      L[i * N + k] = s * inv;
+      const PetscReal lik = col[i];
+      if (lik == 0) continue;
+      PetscReal *Li = &L[i * N];
+      for (PetscInt j = k + 1; j <= i; ++j) Li[j] -= lik * col[j];
     }
   }
-  for (PetscInt i = 0; i < N; ++i) { // L y = b
-    for (PetscInt j = 0; j < i; ++j) b[i] -= L[i * N + j] * b[j];
-    b[i] /= L[i * N + i];
+  for (PetscInt j = 0; j < N; ++j) { // L y = b, by columns
+    b[j] /= L[j * N + j];
+    if (b[j] == 0) continue;
+    for (PetscInt i = j + 1; i < N; ++i) b[i] -= L[i * N + j] * b[j];
   }
-  for (PetscInt i = N - 1; i >= 0; --i) { // L^T z = y
-    for (PetscInt j = i + 1; j < N; ++j) b[i] -= L[j * N + i] * b[j];
+  for (PetscInt i = N - 1; i >= 0; --i) { // L^T z = y, by rows of L
     b[i] /= L[i * N + i];
+    const PetscReal *Li = &L[i * N];
+    for (PetscInt j = 0; j < i; ++j) b[j] -= Li[j] * b[i];
   }
   return true;
 }
@@ -367,7 +372,8 @@ private:
       for (size_t k = i > 0 ? i - 1 : 0; k < std::min(i + 2, sides_.size()); ++k)
         if (sides_[k].unknown == s.unknown && sides_[k].entry < rows) L_[s.entry * rows + sides_[k].entry] += s.sign * sides_[k].sign / h_[s.unknown];
     }
-    if (!SolveSPD(rows, L_.data(), mu_.data())) return false;
+    col_.resize(rows);
+    if (!SolveSPD(rows, L_.data(), mu_.data(), col_.data())) return false;
     for (PetscInt u = 0; u < m; ++u) x_[u] = c_[u];
     for (const Side &s : sides_)
       if (s.entry < rows) x_[s.unknown] -= s.sign * mu_[s.entry];
@@ -387,7 +393,7 @@ private:
   bool                   boundaryUnknown_ = false;
   std::vector<Key>       keys_;
   std::vector<PetscInt>  table_, partner_;
-  std::vector<PetscReal> x_, h_, c_, L_, mu_, fixed_, rhs_, resid_;
+  std::vector<PetscReal> x_, h_, c_, L_, mu_, col_, fixed_, rhs_, resid_;
 };
 
 } // namespace
@@ -395,10 +401,12 @@ private:
 PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const System &sys, Vec u, Reconstruction &r)
 {
   MPI_Comm             comm = PetscObjectComm((PetscObject)space.dm);
-  static PetscLogEvent event = 0;
+  static PetscLogEvent event = 0, cellEvent = 0, patchEvent = 0; // -log_view: the whole, its cell loop, its local patches
   PetscFunctionBeginUser;
   PetscCheck(space.element == Element::P1, comm, PETSC_ERR_ARG_WRONG, "ReconstructP1 needs the P1 space");
   if (!event) PetscCall(PetscLogEventRegister("ReconstructP1", DM_CLASSID, &event));
+  if (!cellEvent) PetscCall(PetscLogEventRegister("P1CellData", DM_CLASSID, &cellEvent));
+  if (!patchEvent) PetscCall(PetscLogEventRegister("P1LocalPatches", DM_CLASSID, &patchEvent));
   PetscCall(PetscLogEventBegin(event, 0, 0, 0, 0));
   const PetscInt nb = space.Nb(), nc = space.NumCells(), nv = space.numLocal;
 
@@ -408,7 +416,9 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscCall(DMGetLocalVector(space.dm, &loc));
   PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, loc));
   PetscCall(VecGetArrayRead(loc, &ua));
-  PetscCall(ComputeCellData(space, problem, sys, ua, cd));
+  PetscCall(PetscLogEventBegin(cellEvent, 0, 0, 0, 0));
+  PetscCall(ComputeCellData(space, problem, sys, ua, cd, r.oscillation));
+  PetscCall(PetscLogEventEnd(cellEvent, 0, 0, 0, 0));
   PetscCall(VecRestoreArrayRead(loc, &ua));
 
   // Local cells per vertex (CSR), and which vertices have cells on other ranks too (their count summed
@@ -448,19 +458,37 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   r.companion.clear();
   bool                   ok = true;
   std::vector<Corner>    corners;
+  std::vector<PetscInt>  cells;
   std::vector<PetscReal> out;
   Patch                  patch(space.dim);
-  // Patches on this rank alone.
-  for (PetscInt v = 0; v < nv && ok; ++v) {
-    if (shared[v] || start[v + 1] == start[v]) continue;
-    const PetscInt n = start[v + 1] - start[v];
+  // Patches on this rank alone, in the order in which the cells first reach their vertices: the cells of
+  // consecutive patches then lie close in memory, where the vertex order may scatter them (a mesh refined
+  // in levels numbers cells and vertices by different rules), which made the patches' reads of the cell
+  // data and writes of the fluxes wait for memory.
+  PetscCall(PetscLogEventBegin(patchEvent, 0, 0, 0, 0));
+  std::vector<PetscInt> order;
+  {
+    std::vector<char> seen(nv, 0);
+    order.reserve(nv);
+    for (PetscInt i = 0; i < nc * nb; ++i)
+      if (!seen[space.cellVert[i]]) seen[space.cellVert[i]] = 1, order.push_back(space.cellVert[i]);
+  }
+  for (const PetscInt v : order) {
+    if (!ok) break;
+    if (shared[v]) continue;
+    const PetscInt n = start[v + 1] - start[v], *at = &list[start[v]]; // at[e] = c * nb + corner
     corners.resize(n);
+    cells.resize(n);
     out.resize(n * nb);
-    for (PetscInt e = 0; e < n; ++e) FillCorner(space, cd, gidx, list[start[v] + e] / nb, list[start[v] + e] % nb, corners[e]);
+    for (PetscInt e = 0; e < n; ++e) {
+      cells[e] = at[e] / nb;
+      FillCorner(space, cd, gidx, cells[e], at[e] - cells[e] * nb, corners[e]);
+    }
     ok = patch.Solve(space.kindLocal[v], corners.data(), n, out.data());
     for (PetscInt e = 0; e < n && ok; ++e)
-      for (PetscInt j = 0; j < nb; ++j) r.flux[(list[start[v] + e] / nb) * nb + j] += out[e * nb + j];
+      for (PetscInt j = 0; j < nb; ++j) r.flux[cells[e] * nb + j] += out[e * nb + j];
   }
+  PetscCall(PetscLogEventEnd(patchEvent, 0, 0, 0, 0));
 
   // Patches across ranks: gather their corners on the vertex's owner, solve there, scatter back.
   std::vector<PetscInt>    leafAt;

@@ -20,47 +20,6 @@ PetscErrorCode EstimateOptionsFromCommandLine(MPI_Comm comm, EstimateOptions &o)
   PetscFunctionReturn(0);
 }
 
-PetscReal SimplexDiameter(PetscInt dim, const PetscReal *X)
-{
-  PetscReal h2 = 0;
-  for (PetscInt i = 0; i <= dim; ++i)
-    for (PetscInt j = i + 1; j <= dim; ++j) {
-      PetscReal l2 = 0;
-      for (PetscInt d = 0; d < dim; ++d) l2 += (X[i * dim + d] - X[j * dim + d]) * (X[i * dim + d] - X[j * dim + d]);
-      h2 = std::max(h2, l2);
-    }
-  return std::sqrt(h2);
-}
-
-void ComputeCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, std::string &error)
-{
-  const PetscInt    dim  = space.dim;
-  const Quadrature &rule = sys.cellRule;
-  load.oscillation       = 0;
-  if (problem.f->IsConstant()) { // one value, no parser, no oscillation
-    const PetscReal f = problem.f->Scalar(g.centroid, dim, error);
-    for (PetscInt k = 0; k <= dim; ++k) load.moment[k] = f * g.volume / (dim + 1);
-    return;
-  }
-  problem.f->SetCellSet(space.CellSet(c));
-  work.resize(rule.Size());
-  PetscReal total = 0, x[3];
-  for (PetscInt k = 0; k <= dim; ++k) load.moment[k] = 0;
-  for (PetscInt q = 0; q < rule.Size(); ++q) {
-    const PetscReal *lambda = rule.Point(q);
-    SimplexPoint(dim, X, lambda, x);
-    work[q]            = problem.f->Scalar(x, dim, error);
-    const PetscReal fq = work[q] * rule.weights[q] * g.volume;
-    total += fq;
-    for (PetscInt k = 0; k <= dim; ++k) load.moment[k] += fq * lambda[k];
-  }
-  const PetscReal mean = total / g.volume;
-  PetscReal       dev2 = 0;
-  for (PetscInt q = 0; q < rule.Size(); ++q) dev2 += rule.weights[q] * (work[q] - mean) * (work[q] - mean);
-  // Poincare on a convex cell: ||w - w_T||_T <= h_T / pi ||grad w||_T.
-  load.oscillation = SimplexDiameter(dim, X) / M_PI * std::sqrt(dev2 * g.volume / sys.Kappa(c));
-}
-
 namespace {
 bool InParts(const std::vector<PetscInt> &parts, PetscInt part) { return std::find(parts.begin(), parts.end(), part) != parts.end(); }
 
@@ -169,7 +128,7 @@ PetscReal FluxTerm(PetscInt dim, const PetscReal *X, const CellGeometry &g, cons
   return (g.volume * d2 + c * c * g.volume / ((dim + 1) * (dim + 2)) * m2) / kappa;
 }
 
-// The f part of the oscillation per cell, for a reconstruction that did not evaluate f.
+// The f part of the oscillation per cell, for a reconstruction that did not read it.
 PetscErrorCode CellOscillation(const Space &space, const Problem &problem, const System &sys, std::vector<PetscReal> &osc, std::string &error)
 {
   std::vector<PetscReal> work;
@@ -180,7 +139,7 @@ PetscErrorCode CellOscillation(const Space &space, const Problem &problem, const
     CellGeometry        g;
     CellLoad            load;
     ComputeCellGeometry(space.dim, X, g);
-    ComputeCellLoad(space, problem, sys, c, X, g, work, load, error);
+    GetCellLoad(space, problem, sys, c, X, g, work, load, error);
     osc[c] = load.oscillation;
   }
   PetscFunctionReturn(0);

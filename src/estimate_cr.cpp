@@ -50,7 +50,7 @@ PetscErrorCode FluxesAndVertexSums(const Space &space, const Problem &problem, c
     PetscReal           grad[3], S = 0;
     ComputeCellGeometry(dim, X, g);
     space.Grad(c, a, g, grad);
-    ComputeCellLoad(space, problem, sys, c, X, g, work, load, error);
+    GetCellLoad(space, problem, sys, c, X, g, work, load, error);
     r.oscillation[c]      = load.oscillation;
     const PetscReal total = load.Total(dim), kv = sys.Kappa(c) * g.volume;
     const PetscInt *dofs  = space.Dofs(c);

@@ -31,7 +31,9 @@ PetscErrorCode PipelineSetUp(DM mesh, const Problem &problem, const PipelineOpti
   }
   // Assembly, solve, checks, errors and prolongation need the tables only.
   if (!o.keepMesh) PetscCall(SpaceReleaseMesh(m.space));
-  PetscCall(AssembleSystem(m.space, problem, o.assembly, m.sys));
+  AssemblyOptions assembly = o.assembly;
+  assembly.keepCellLoads   = o.estimate.enabled; // read by the estimate instead of evaluating f again
+  PetscCall(AssembleSystem(m.space, problem, assembly, m.sys));
   PetscCall(DMCreateGlobalVector(m.space.dm, &m.u));
   PetscCall(PetscObjectSetName((PetscObject)m.u, "u"));
   PetscCall(SecondsSince(comm, t0, &m.setupSeconds));

@@ -2,7 +2,9 @@
 - one run per case: each row's times, VI / linear ratio and bytes per DOF are those of the run's JSON;
 - --repeat 3: three runs per case, each kept; each row holds the median of every time and of the three
   ratios and the largest peak memory, recomputed here from the three JSON files;
-- bench.csv and time-per-dof.png are written, no *.tmp file is left; --repeat 0 is a clear usage error."""
+- bench.csv and time-per-dof.png are written, no *.tmp file is left; --repeat 0 is a clear usage error;
+- --estimate: each estimate / solve ratio is that of its run's Estimate and Solve stages, and each adaptive
+  step's overhead / solve is that of the run's "adapt" row (estimate + mark + refine + redistribute + transfer)."""
 import csv
 import json
 import os
@@ -56,6 +58,31 @@ for repeat in [1, 3]:
         if p.returncode == 0:
             check_rows(tmp, repeat)
             c.check(("medians of %d runs each" % repeat in p.stdout) == (repeat > 1), "repeat %d: the summary says whether it shows medians" % repeat)
+
+def check_estimate(tmp):
+    with open(os.path.join(tmp, "estimate-cost.csv")) as f:
+        est = list(csv.DictReader(f))
+    c.check(len(est) == 1 and est[0]["status"] == "ok", "--estimate: one estimate row %s" % [r["status"] for r in est])
+    for r in est:
+        with open(os.path.join(tmp, "estimate-2d-cr-N32-np1-run1.json")) as f:
+            t = json.load(f)["time"]
+        c.check(t["estimate"] > 0 and close(float(r["ratio"]), t["estimate"] / t["solve"]), "--estimate: ratio %s = Estimate / Solve stage %g / %g" % (r["ratio"], t["estimate"], t["solve"]))
+    with open(os.path.join(tmp, "adapt-overhead.csv")) as f:
+        ada = list(csv.DictReader(f))
+    with open(os.path.join(tmp, "adapt-2d-cr-N16-np1-run1.json")) as f:
+        steps = json.load(f)["adapt"]
+    c.check(len(steps) == 3 and [int(r["step"]) for r in ada] == [0, 1], "--estimate: rows for the steps that refine %s of %d" % ([r["step"] for r in ada], len(steps)))
+    for r in ada:
+        a = steps[int(r["step"])]
+        overhead = sum(a[k + "_seconds"] for k in ["estimate", "mark", "refine", "redistribute", "transfer"])
+        c.check(int(r["dofs"]) == a["dofs"] and close(float(r["ratio"]), overhead / a["solve_seconds"]), "--estimate: step %s overhead / solve %s = %g / %g" % (r["step"], r["ratio"], overhead, a["solve_seconds"]))
+
+
+with tempfile.TemporaryDirectory() as tmp:
+    p = bench(tmp, "--estimate", "--est-n2", "32", "--adapt-n2", "16", "--adapt-steps", "2")
+    c.check(p.returncode == 0 and "estimate / solve" in p.stdout and "overhead / solve" in p.stdout, "run/bench --estimate exit status %d %s" % (p.returncode, p.stderr[-400:]))
+    if p.returncode == 0:
+        check_estimate(tmp)
 
 with tempfile.TemporaryDirectory() as tmp:
     p = bench(tmp, "--repeat", "0")

@@ -13,8 +13,26 @@ struct AssemblyOptions {
   // "centroid" the one-point rule, i.e. f replaced by its value at each cell centroid (the paper's choice).
   bool     centroid   = false;
   PetscInt loadDegree = 4;
+  // Keep each cell's load (CellLoad: its moments and oscillation) in System::cellLoads, so that the
+  // estimate reads them instead of evaluating f again. Set by the pipeline where the estimate is computed.
+  bool keepCellLoads = false;
 };
 PetscErrorCode AssemblyOptionsFromCommandLine(MPI_Comm comm, AssemblyOptions &o);
+
+// The load of one cell by the assembly's rule (System::cellRule), from one evaluation of f per point:
+// moment[k] = int_T f lambda_k (k = 0..dim), so that int_T f phi_i = sum_k moment[k] phi_i(X_k) for the
+// (affine) basis functions, int_T f = sum_k moment[k] and Pi_0 f = that / |T|; and the oscillation
+// h_T / pi kappa_T^{-1/2} ||f - Pi_0 f||_T (the norm by the same rule), which the estimate needs.
+struct CellLoad {
+  PetscReal moment[4];
+  PetscReal oscillation;
+  PetscReal Total(PetscInt dim) const
+  {
+    PetscReal t = 0;
+    for (PetscInt k = 0; k <= dim; ++k) t += moment[k];
+    return t;
+  }
+};
 
 struct System {
   Mat                    A = nullptr;    // stiffness, Dirichlet rows and columns replaced by identity
@@ -23,6 +41,9 @@ struct System {
   Vec                    uD = nullptr;   // Dirichlet values on Dirichlet DOFs, 0 elsewhere
   std::vector<PetscReal> kappa;          // per local cell, or one value when kappa is constant
   Quadrature             cellRule, faceRule;
+  // With AssemblyOptions::keepCellLoads: per local cell, its CellLoad's dim + 1 moments and oscillation
+  // (dim + 2 reals per cell); else empty.
+  std::vector<PetscReal> cellLoads;
   PetscReal              Kappa(PetscInt c) const { return kappa.size() == 1 ? kappa[0] : kappa[c]; }
 };
 
@@ -31,6 +52,12 @@ PetscErrorCode AssembleSystem(const Space &space, const Problem &problem, const 
 PetscErrorCode SystemDestroy(System &sys);
 // J(u) = 1/2 a_h(u, u) - chi(u), computed cell by cell from the unreduced element matrices.
 PetscErrorCode DiscreteEnergy(const Space &space, const System &sys, Vec u, PetscReal *J);
+// The load of cell c (vertices X, geometry g) as the assembly computed it: read from sys.cellLoads where the
+// assembly kept them, else evaluated again (a constant f is not evaluated per point). `work` is scratch
+// space kept across cells; a NaN of f is reported in `error` (CheckAll after the loop).
+void GetCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, std::string &error);
+// Diameter of the simplex with vertices X (its longest edge).
+PetscReal SimplexDiameter(PetscInt dim, const PetscReal *X);
 // Element stiffness of cell c (nb x nb, row-major).
 void ElementStiffness(const Space &space, PetscInt c, PetscReal kappa, const CellGeometry &g, PetscReal *Ke);
 

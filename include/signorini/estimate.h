@@ -49,29 +49,10 @@ struct Reconstruction {
   // whether this rank owns the vertex (ImproveCompanion).
   std::vector<PetscReal> companion, lower;
   std::vector<char>      movable, owned;
-  // Per local cell, h_T / pi kappa_T^{-1/2} ||f - Pi_0 f||_T (see CellLoad), from the evaluations of f that
-  // the flux needed; empty: the estimate evaluates f itself.
+  // Per local cell, h_T / pi kappa_T^{-1/2} ||f - Pi_0 f||_T (see CellLoad in assembly.h), from the loads
+  // that the flux needed; empty: the estimate gets them itself.
   std::vector<PetscReal> oscillation;
 };
-
-// The load of one cell by the assembly's rule (sys.cellRule), from one evaluation of f per point:
-// moment[k] = int_T f lambda_k (k = 0..dim), so that int_T f = sum_k moment[k] and Pi_0 f = that / |T|, and
-// the oscillation h_T / pi kappa_T^{-1/2} ||f - Pi_0 f||_T (the norm by the same rule). A constant f is not
-// evaluated. `work` is scratch space kept across cells; a NaN of f is reported in `error` (CheckAll after
-// the loop).
-struct CellLoad {
-  PetscReal moment[4];
-  PetscReal oscillation;
-  PetscReal Total(PetscInt dim) const
-  {
-    PetscReal t = 0;
-    for (PetscInt k = 0; k <= dim; ++k) t += moment[k];
-    return t;
-  }
-};
-void ComputeCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, std::string &error);
-// Diameter of the simplex with vertices X (its longest edge).
-PetscReal SimplexDiameter(PetscInt dim, const PetscReal *X);
 
 struct Estimate {
   bool      computed = false;
