@@ -109,9 +109,20 @@ static void ComputeCellLoad(const Space &space, const Problem &problem, const Sy
     for (PetscInt k = 0; k <= dim; ++k) load.moment[k] += fq * lambda[k];
   }
   if (!oscillation) return;
-  const PetscReal mean = total / g.volume;
-  PetscReal       dev2 = 0;
-  for (PetscInt q = 0; q < rule.Size(); ++q) dev2 += rule.weights[q] * (work[q] - mean) * (work[q] - mean);
+  // ||f - mean||^2 / |T| by the oscillation rule: the load's values where it is that rule.
+  const Quadrature &orule = sys.oscCellRule;
+  PetscReal         mean  = total / g.volume;
+  if (orule.Size() != rule.Size()) {
+    work.resize(orule.Size());
+    mean = 0;
+    for (PetscInt q = 0; q < orule.Size(); ++q) {
+      SimplexPoint(dim, X, orule.Point(q), x);
+      work[q] = problem.f->Scalar(x, dim, error);
+      mean += orule.weights[q] * work[q];
+    }
+  }
+  PetscReal dev2 = 0;
+  for (PetscInt q = 0; q < orule.Size(); ++q) dev2 += orule.weights[q] * (work[q] - mean) * (work[q] - mean);
   // Poincare on a convex cell: ||w - w_T||_T <= h_T / pi ||grad w||_T.
   load.oscillation = SimplexDiameter(dim, X) / M_PI * std::sqrt(dev2 * g.volume / sys.Kappa(c));
 }
@@ -223,6 +234,8 @@ PetscErrorCode AssembleSystem(const Space &space, const Problem &problem, const 
   PetscCall(StagePush(Stage::Assemble));
   sys.cellRule = SimplexQuadrature(space.dim, opts.centroid ? 1 : opts.loadDegree);
   sys.faceRule = SimplexQuadrature(space.dim - 1, opts.centroid ? 1 : opts.loadDegree);
+  sys.oscCellRule = sys.cellRule.degree >= System::kOscillationDegree ? sys.cellRule : SimplexQuadrature(space.dim, System::kOscillationDegree);
+  sys.oscFaceRule = sys.faceRule.degree >= System::kOscillationDegree ? sys.faceRule : SimplexQuadrature(space.dim - 1, System::kOscillationDegree);
   PetscCall(CellCoefficients(space, problem, sys));
   PetscCall(DMGetLocalVector(space.dm, &loc));
   PetscCall(VecSet(loc, 0));

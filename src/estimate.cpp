@@ -51,12 +51,12 @@ struct FaceOf {
 //   C_F^2 = |F| h_T / |T| (h_T / pi^2 + 2 l_F / (pi d)),
 // from int_F w = |F|/(d|T|) int_T (d w + (x - a_F) . grad w) (a_F the vertex opposite F) with
 // w = (e - e_T)^2, Poincare's ||e - e_T||_T <= h_T/pi ||grad e||_T, and |x - a_F| <= l_F on T, l_F the longest
-// edge at a_F (<= h_T). Pi_0 g is the mean by the assembly's face rule, the flux's.
+// edge at a_F (<= h_T). Pi_0 g is the mean of g (by the oscillation's face rule, assembly.h).
 void AddNeumannOscillation(const Space &space, const Problem &problem, const System &sys, std::vector<PetscReal> &osc, std::string &error)
 {
   if (!problem.HasNeumann() || problem.g->IsConstant()) return;
   const PetscInt         dim  = space.dim;
-  const Quadrature      &rule = sys.faceRule;
+  const Quadrature      &rule = sys.oscFaceRule;
   std::vector<PetscReal> values(rule.Size());
   PetscReal              lambda[4], x[3];
   for (const BoundaryFace &bf : space.boundary) {

@@ -89,6 +89,15 @@ for name, extra in [(n, ["-space", el] + x) for n, x in [("manufactured-2d", ["-
     same = same and abs(e1["contact"] - e2["contact"]) <= 1e-10 * e1["eta"] ** 2
     c.check(s2["ranks"] == 2 and same, "%s %s: eta %.15e on 1 rank, %.15e on 2" % (name, extra[1], e1["eta"], e2["eta"]))
 
+# 3b. The data oscillation does not depend on the load rule: with the one-point rule (-load_quadrature
+# centroid) it is measured by the degree-4 rule, the accurate load rule's own (assembly.h), so both runs
+# give the same oscillation (f and g of manufactured-2d are not constant on the cells).
+for el in ["cr", "p1"]:
+    _, _, _, acc = run(scene("manufactured-2d") + ["-space", el, "-refine", "1"])
+    _, _, _, cen = run(scene("manufactured-2d") + ["-space", el, "-refine", "1", "-load_quadrature", "centroid"])
+    a, b = acc["estimate"]["oscillation"], cen["estimate"]["oscillation"]
+    c.check(a > 0 and rel(a, b) <= 1e-12, "%s: oscillation %.6e with the accurate load rule, %.6e with the centroid rule" % (el, a, b))
+
 # 4. -estimate none.
 _, out, _, s = run(scene("manufactured-2d") + ["-space", "cr", "-estimate", "none"])
 c.check("estimate of the energy error" not in out and "efficiency" not in out, "-estimate none: no estimate printed")

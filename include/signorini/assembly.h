@@ -41,6 +41,11 @@ struct System {
   Vec                    uD = nullptr;   // Dirichlet values on Dirichlet DOFs, 0 elsewhere
   std::vector<PetscReal> kappa;          // per local cell, or one value when kappa is constant
   Quadrature             cellRule, faceRule;
+  // The rules of the estimate's data oscillation ||f - Pi_0 f||, ||g - Pi_0 g||: the load's own where they
+  // are exact for degree kOscillationDegree, else rules that are. A one-point rule (-load_quadrature
+  // centroid) would see no oscillation at all.
+  static constexpr PetscInt kOscillationDegree = 4;
+  Quadrature             oscCellRule, oscFaceRule;
   // With AssemblyOptions::keepCellLoads: per local cell, its CellLoad's dim + 1 moments and oscillation
   // (dim + 2 reals per cell); else empty.
   std::vector<PetscReal> cellLoads;
