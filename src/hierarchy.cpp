@@ -1,0 +1,158 @@
+#include "signorini/hierarchy.h"
+
+#include <cmath>
+
+namespace signorini {
+
+namespace {
+// How many fine cells of all ranks hold each local DOF of the fine space (the divisor of the mean).
+PetscErrorCode CellsPerDof(const Space &fine, std::vector<PetscReal> &count)
+{
+  Vec          loc, glob;
+  PetscScalar *a;
+  PetscFunctionBeginUser;
+  PetscCall(DMGetLocalVector(fine.dm, &loc));
+  PetscCall(DMGetGlobalVector(fine.dm, &glob));
+  PetscCall(VecSet(loc, 0));
+  PetscCall(VecGetArray(loc, &a));
+  for (PetscInt c = 0; c < fine.NumCells(); ++c)
+    for (PetscInt i = 0; i < fine.Nb(); ++i) a[fine.Dofs(c)[i]] += 1;
+  PetscCall(VecRestoreArray(loc, &a));
+  PetscCall(VecSet(glob, 0));
+  PetscCall(DMLocalToGlobal(fine.dm, loc, ADD_VALUES, glob));
+  PetscCall(DMGlobalToLocal(fine.dm, glob, INSERT_VALUES, loc));
+  PetscCall(VecGetArray(loc, &a));
+  count.resize(fine.numLocal);
+  for (PetscInt i = 0; i < fine.numLocal; ++i) count[i] = PetscRealPart(a[i]);
+  PetscCall(VecRestoreArray(loc, &a));
+  PetscCall(DMRestoreGlobalVector(fine.dm, &glob));
+  PetscCall(DMRestoreLocalVector(fine.dm, &loc));
+  PetscFunctionReturn(0);
+}
+} // namespace
+
+PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const std::vector<PetscInt> &parent, Mat *P)
+{
+  MPI_Comm        comm = PetscObjectComm((PetscObject)fine.dm);
+  const PetscInt *gf, *gc;
+  PetscFunctionBeginUser;
+  PetscCheck((PetscInt)parent.size() == fine.NumCells(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "parent map has %d entries for %d fine cells", (int)parent.size(), (int)fine.NumCells());
+  PetscCheck(coarse.element == fine.element, PETSC_COMM_SELF, PETSC_ERR_ARG_INCOMP, "prolongation between different elements");
+  std::vector<PetscReal> count;
+  PetscCall(CellsPerDof(fine, count));
+  // A row couples the DOFs of at most two parent cells (a CR face on a coarse face); P1 rows hold at most
+  // dim entries, CR rows at most 2 (dim + 1) - 1.
+  const PetscInt nz = 2 * coarse.Nb();
+  PetscCall(MatCreateAIJ(comm, fine.numOwned, coarse.numOwned, fine.numGlobal, coarse.numGlobal, nz, NULL, nz, NULL, P));
+  PetscCall(MatSetOption(*P, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_FALSE));
+  PetscCall(ISLocalToGlobalMappingGetIndices(fine.ltog, &gf));
+  PetscCall(ISLocalToGlobalMappingGetIndices(coarse.ltog, &gc));
+  const PetscInt dim = coarse.dim, nb = coarse.Nb();
+  PetscReal      lambda[4], mu[4], x[3];
+  for (PetscInt c = 0; c < fine.NumCells(); ++c) {
+    const PetscInt      pc = parent[c];
+    const Space::Coords XH = coarse.X(pc), Xh = fine.X(c);
+    CellGeometry        g;
+    ComputeCellGeometry(dim, XH, g);
+    for (PetscInt i = 0; i < nb; ++i) {
+      const PetscInt dof = fine.Dofs(c)[i];
+      if (fine.kindLocal[dof] == kDirichlet) continue;
+      DofLambda(fine.element, dim, i, mu);
+      SimplexPoint(dim, Xh, mu, x);
+      Barycentric(dim, g, XH, x, lambda);
+      PetscInt    cols[4], n = 0;
+      PetscScalar vals[4];
+      for (PetscInt j = 0; j < nb; ++j) {
+        const PetscInt  J = coarse.Dofs(pc)[j];
+        const PetscReal w = coarse.BasisValue(pc, j, lambda) / count[dof];
+        if (coarse.kindLocal[J] == kDirichlet || std::fabs(w) < 1e-12) continue;
+        cols[n] = gc[J], vals[n++] = w;
+      }
+      PetscCall(MatSetValues(*P, 1, &gf[dof], n, cols, vals, ADD_VALUES));
+    }
+  }
+  PetscCall(ISLocalToGlobalMappingRestoreIndices(coarse.ltog, &gc));
+  PetscCall(ISLocalToGlobalMappingRestoreIndices(fine.ltog, &gf));
+  PetscCall(MatAssemblyBegin(*P, MAT_FINAL_ASSEMBLY));
+  PetscCall(MatAssemblyEnd(*P, MAT_FINAL_ASSEMBLY));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Hierarchy::Destroy()
+{
+  PetscFunctionBeginUser;
+  for (Mat &m : P) PetscCall(MatDestroy(&m));
+  P.clear();
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TruncateTransfer(Mat P, IS rows, IS *cols, Mat *Pt)
+{
+  MPI_Comm comm = PetscObjectComm((PetscObject)P);
+  IS       allCols, allRows;
+  Mat      Pr;
+  PetscInt cStart, cEnd, N, rStart, rEnd;
+  PetscFunctionBeginUser;
+  PetscCall(MatGetOwnershipRangeColumn(P, &cStart, &cEnd));
+  PetscCall(ISCreateStride(comm, cEnd - cStart, cStart, 1, &allCols));
+  PetscCall(MatCreateSubMatrix(P, rows, allCols, MAT_INITIAL_MATRIX, &Pr));
+  PetscCall(ISDestroy(&allCols));
+  // A coarse DOF whose column vanishes on the kept rows has a zero truncated basis function.
+  PetscCall(MatGetSize(Pr, NULL, &N));
+  std::vector<PetscReal> norms(N);
+  PetscCall(MatGetColumnNorms(Pr, NORM_INFINITY, norms.data()));
+  std::vector<PetscInt> kept;
+  for (PetscInt j = cStart; j < cEnd; ++j)
+    if (norms[j] > 0) kept.push_back(j);
+  PetscCall(ISCreateGeneral(comm, (PetscInt)kept.size(), kept.data(), PETSC_COPY_VALUES, cols));
+  PetscCall(MatGetOwnershipRange(Pr, &rStart, &rEnd));
+  PetscCall(ISCreateStride(comm, rEnd - rStart, rStart, 1, &allRows));
+  PetscCall(MatCreateSubMatrix(Pr, allRows, *cols, MAT_INITIAL_MATRIX, Pt));
+  PetscCall(ISDestroy(&allRows));
+  PetscCall(MatDestroy(&Pr));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode HierarchyMGSetUp(PC pc, const Hierarchy &h, Mat A, IS inactive)
+{
+  const PetscInt levels = (PetscInt)h.P.size() + 1;
+  KSP            ksp;
+  PC             sub;
+  IS             rows = inactive, cols;
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectReference((PetscObject)rows));
+  PetscCall(PCSetType(pc, PCMG));
+  PetscCall(PCMGSetLevels(pc, levels, NULL));
+  PetscCall(PCMGSetType(pc, PC_MG_MULTIPLICATIVE));
+  PetscCall(PCMGSetCycleType(pc, PC_MG_CYCLE_V));
+  PetscCall(PCMGSetGalerkin(pc, PC_MG_GALERKIN_BOTH));
+  // PCMG's level l is hierarchy level l: P[l - 1] maps level l - 1 to level l.
+  for (PetscInt l = levels - 1; l > 0; --l) {
+    Mat Pt;
+    PetscCall(TruncateTransfer(h.P[l - 1], rows, &cols, &Pt));
+    PetscCall(PCMGSetInterpolation(pc, l, Pt));
+    PetscCall(MatDestroy(&Pt));
+    PetscCall(ISDestroy(&rows));
+    rows = cols;
+    // Symmetric SOR as a stationary smoother: the same symmetric sweep before and after the coarse
+    // correction makes the V-cycle a symmetric operator.
+    PetscCall(PCMGGetSmoother(pc, l, &ksp));
+    PetscCall(KSPSetType(ksp, KSPRICHARDSON));
+    PetscCall(KSPGetPC(ksp, &sub));
+    PetscCall(PCSetType(sub, PCSOR));
+    PetscCall(PCSORSetSymmetric(sub, SOR_LOCAL_SYMMETRIC_SWEEP));
+    PetscCall(KSPSetTolerances(ksp, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, 1));
+  }
+  PetscCall(ISDestroy(&rows));
+  PetscCall(PCMGGetCoarseSolve(pc, &ksp));
+  PetscCall(KSPSetType(ksp, KSPPREONLY));
+  PetscCall(KSPGetPC(ksp, &sub));
+  PetscCall(PCSetType(sub, PCHYPRE));
+  PetscCall(PCHYPRESetType(sub, "boomeramg"));
+  PetscCall(PCSetOperators(pc, A, A));
+  PetscCall(PCSetFromOptions(pc));
+  PetscCall(PCSetUp(pc));
+  PetscFunctionReturn(0);
+}
+
+} // namespace signorini
