@@ -82,7 +82,9 @@ PetscErrorCode Hierarchy::Destroy()
 {
   PetscFunctionBeginUser;
   for (Mat &m : P) PetscCall(MatDestroy(&m));
+  for (Mat &m : A) PetscCall(MatDestroy(&m));
   P.clear();
+  A.clear();
   PetscFunctionReturn(0);
 }
 
@@ -113,36 +115,80 @@ PetscErrorCode TruncateTransfer(Mat P, IS rows, IS *cols, Mat *Pt)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode HierarchyMGSetUp(PC pc, const Hierarchy &h, Mat A, IS inactive)
+namespace {
+// Symmetric smoothing: forward Gauss-Seidel (SOR sweeps local to each rank) before the coarse correction,
+// its adjoint, backward Gauss-Seidel, after it; the V-cycle is then a symmetric operator, at half the cost
+// of a symmetric sweep on each side.
+PetscErrorCode SetSmoother(PC pc, PetscInt l)
+{
+  KSP ksp[2];
+  PetscFunctionBeginUser;
+  PetscCall(PCMGGetSmootherDown(pc, l, &ksp[0]));
+  PetscCall(PCMGGetSmootherUp(pc, l, &ksp[1]));
+  for (int k = 0; k < 2; ++k) {
+    PC sub;
+    PetscCall(KSPSetType(ksp[k], KSPRICHARDSON));
+    PetscCall(KSPGetPC(ksp[k], &sub));
+    PetscCall(PCSetType(sub, PCSOR));
+    PetscCall(PCSORSetSymmetric(sub, k == 0 ? SOR_LOCAL_FORWARD_SWEEP : SOR_LOCAL_BACKWARD_SWEEP));
+    PetscCall(KSPSetTolerances(ksp[k], PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, 1));
+  }
+  PetscFunctionReturn(0);
+}
+
+// The operator of level l - 1: the Galerkin product of the level above, or the level's own matrix on the
+// kept DOFs cols, in the units of the solve.
+PetscErrorCode CoarseOperator(const Hierarchy &h, PetscInt l, Mat Afine, Mat Pt, IS cols, const HierarchyMGOptions &o, Mat *Ac)
+{
+  PetscFunctionBeginUser;
+  if (!o.galerkin) {
+    PetscCall(MatCreateSubMatrix(h.A[l - 1], cols, cols, MAT_INITIAL_MATRIX, Ac));
+    PetscCall(MatScale(*Ac, o.scale));
+    PetscFunctionReturn(0);
+  }
+  PetscCall(MatProductCreate(Afine, Pt, NULL, Ac));
+  PetscCall(MatProductSetType(*Ac, MATPRODUCT_PtAP));
+  PetscCall(MatProductSetFill(*Ac, PETSC_DEFAULT));
+  PetscCall(MatProductSetFromOptions(*Ac));
+  PetscCall(MatProductSymbolic(*Ac));
+  PetscCall(MatProductNumeric(*Ac));
+  PetscCall(MatSetOption(*Ac, MAT_SYMMETRIC, PETSC_TRUE));
+  PetscFunctionReturn(0);
+}
+} // namespace
+
+PetscErrorCode HierarchyMGSetUp(PC pc, const Hierarchy &h, Mat A, IS inactive, const HierarchyMGOptions &o)
 {
   const PetscInt levels = (PetscInt)h.P.size() + 1;
   KSP            ksp;
   PC             sub;
   IS             rows = inactive, cols;
+  Mat            Afine = A;
   PetscFunctionBeginUser;
+  PetscCheck(o.galerkin || h.A.size() >= h.P.size(), PetscObjectComm((PetscObject)pc), PETSC_ERR_ARG_WRONG, "rediscretized coarse operators need every coarse level's matrix");
   PetscCall(PetscObjectReference((PetscObject)rows));
+  PetscCall(PetscObjectReference((PetscObject)Afine));
   PetscCall(PCSetType(pc, PCMG));
   PetscCall(PCMGSetLevels(pc, levels, NULL));
   PetscCall(PCMGSetType(pc, PC_MG_MULTIPLICATIVE));
   PetscCall(PCMGSetCycleType(pc, PC_MG_CYCLE_V));
-  PetscCall(PCMGSetGalerkin(pc, PC_MG_GALERKIN_BOTH));
+  PetscCall(PCMGSetGalerkin(pc, PC_MG_GALERKIN_NONE)); // the coarse operators are set below
   // PCMG's level l is hierarchy level l: P[l - 1] maps level l - 1 to level l.
   for (PetscInt l = levels - 1; l > 0; --l) {
-    Mat Pt;
+    Mat Pt, Ac;
     PetscCall(TruncateTransfer(h.P[l - 1], rows, &cols, &Pt));
     PetscCall(PCMGSetInterpolation(pc, l, Pt));
+    PetscCall(CoarseOperator(h, l, Afine, Pt, cols, o, &Ac));
+    PetscCall(PCMGGetSmoother(pc, l - 1, &ksp));
+    PetscCall(KSPSetOperators(ksp, Ac, Ac));
+    PetscCall(SetSmoother(pc, l));
     PetscCall(MatDestroy(&Pt));
+    PetscCall(MatDestroy(&Afine));
+    Afine = Ac;
     PetscCall(ISDestroy(&rows));
     rows = cols;
-    // Symmetric SOR as a stationary smoother: the same symmetric sweep before and after the coarse
-    // correction makes the V-cycle a symmetric operator.
-    PetscCall(PCMGGetSmoother(pc, l, &ksp));
-    PetscCall(KSPSetType(ksp, KSPRICHARDSON));
-    PetscCall(KSPGetPC(ksp, &sub));
-    PetscCall(PCSetType(sub, PCSOR));
-    PetscCall(PCSORSetSymmetric(sub, SOR_LOCAL_SYMMETRIC_SWEEP));
-    PetscCall(KSPSetTolerances(ksp, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, 1));
   }
+  PetscCall(MatDestroy(&Afine));
   PetscCall(ISDestroy(&rows));
   PetscCall(PCMGGetCoarseSolve(pc, &ksp));
   PetscCall(KSPSetType(ksp, KSPPREONLY));

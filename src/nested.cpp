@@ -59,6 +59,7 @@ PetscErrorCode NestedIteration::Next(Step &step, bool &more)
   prolongSeconds_ = 0;
   step.mesh       = levels_.dm[level_];
   step.options    = fine_;
+  step.options.solve.amgReuse.hierarchy = &hierarchy_; // complete for this level once Carry ran
   if (level_ + 1 < levels_.Count()) {
     PipelineOptions &lo = step.options; // the user's solver settings, without the linear comparison (finest level only)
     lo.solve.compareLinear = false;
@@ -77,6 +78,18 @@ PetscErrorCode NestedIteration::Carry(MeshSolution &cur, bool &carried)
   carried = level_ > 0;
   if (!carried) PetscFunctionReturn(0);
   PetscCall(ProlongateLevel(prev_, cur.space, levels_.parent[level_], problem_, cur.u, prolongSeconds_));
+  if (fine_.solve.amgReuse.innerType == PCMG) {
+    Mat            P;
+    PetscLogDouble t0;
+    double         seconds;
+    PetscCall(PetscTime(&t0));
+    PetscCall(StagePush(Stage::Solve));
+    PetscCall(ProlongationMatrix(prev_.space, cur.space, levels_.parent[level_], &P));
+    PetscCall(StagePop(Stage::Solve));
+    hierarchy_.P.push_back(P);
+    PetscCall(SecondsSince(PetscObjectComm((PetscObject)cur.u), t0, &seconds));
+    prolongSeconds_ += seconds;
+  }
   PetscCall(prev_.Destroy());
   std::vector<PetscInt>().swap(levels_.parent[level_]); // used once
   PetscFunctionReturn(0);
@@ -90,9 +103,14 @@ PetscErrorCode NestedIteration::Solved(MeshSolution &&m)
     amg_.setups += m.result.amg.setups;
     amg_.reuses += m.result.amg.reuses;
     prev_ = std::move(m);
+    if (fine_.solve.amgReuse.innerType == PCMG && !fine_.solve.amgReuse.mgGalerkin) { // the level's operator stays for the multigrid
+      PetscCall(PetscObjectReference((PetscObject)prev_.sys.A));
+      hierarchy_.A.push_back(prev_.sys.A);
+    }
     PetscCall(SystemDestroy(prev_.sys)); // the prolongation needs the space and u only
     PetscFunctionReturn(0);
   }
+  PetscCall(hierarchy_.Destroy());
   finest         = std::move(m);
   SolveResult &r = finest.result;
   r.solveSeconds = 0;

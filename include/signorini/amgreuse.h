@@ -28,7 +28,9 @@
 //
 // The preconditioner inside is BoomerAMG by default and reads the usual -pc_hypre_* options; -vi_pc_type
 // chooses another (gamg, reading -pc_gamg_*: PETSc 3.18's RSLS cannot keep a GAMG across blocks of
-// different size, this shell creates one per set-up). An explicit -pc_type replaces the shell and
+// different size, this shell creates one per set-up). -vi_pc_type mg is the geometric multigrid over the
+// refinement hierarchy (hierarchy.h) where the solve has one (nested iteration: every level but the
+// coarsest), BoomerAMG where it has none. An explicit -pc_type replaces the shell and
 // restores PETSc's behaviour (a new preconditioner for every block, every step to the KSP tolerance).
 #pragma once
 
@@ -38,6 +40,8 @@
 
 namespace signorini {
 
+struct Hierarchy; // hierarchy.h
+
 struct AmgReuseOptions {
   bool      enabled     = true; // -amg_reuse (off: a new set-up every step)
   PetscInt  maxChanged  = 2;    // -amg_reuse_max_changed: "changed" means more DOFs than this (global count)
@@ -45,6 +49,9 @@ struct AmgReuseOptions {
   std::string innerType = "hypre"; // -vi_pc_type: the preconditioner built for a block
   bool      goodStart   = false; // the initial guess carries its active set (nested iteration): only the
                                  // first step is inexact, later ones go to the KSP tolerance
+  const Hierarchy *hierarchy = nullptr; // for -vi_pc_type mg: the transfers up to this solve's level
+  bool      mgGalerkin  = true;  // -vi_mg_galerkin (hierarchy.h)
+  PetscReal scale       = 1;     // the factor the solve applies to A (datascale.h)
 };
 PetscErrorCode AmgReuseOptionsFromCommandLine(MPI_Comm comm, AmgReuseOptions &o);
 

@@ -12,8 +12,10 @@
 // set I_L only (the rows of active DOFs removed, as in truncated nonsmooth Newton multigrid, Graeser &
 // Kornhuber 2009); a coarse DOF stays in the coarse space iff its column of the row-truncated P is not
 // zero, i.e. iff its truncated basis function is not zero; the next coarser transfer keeps the rows of
-// those DOFs, and so on. The coarse operators are the Galerkin products P_t^T A P_t of the truncated
-// transfers (PCMG's MatPtAP), which stay SPD, so the symmetric V-cycle keeps CG applicable.
+// those DOFs, and so on. The coarse operators are either the Galerkin products P_t^T A P_t of the
+// truncated transfers (PCMG's MatPtAP), or the coarse levels' own stiffness matrices restricted to the
+// kept DOFs (rediscretized: no matrix product per set-up, and the CR stencil stays that of one level);
+// both are SPD and the V-cycle is symmetric, so CG stays applicable.
 #pragma once
 
 #include "signorini/space.h"
@@ -31,7 +33,13 @@ PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const 
 // matrices are kept (no meshes, no spaces).
 struct Hierarchy {
   std::vector<Mat> P;
+  std::vector<Mat> A; // rediscretized coarse operators: A[l] the (unscaled) stiffness matrix of level l
   PetscErrorCode   Destroy();
+};
+
+struct HierarchyMGOptions {
+  bool      galerkin = true; // -vi_mg_galerkin: Galerkin coarse operators (else rediscretized, needs h.A)
+  PetscReal scale    = 1;     // the factor the solve applies to A (datascale.h), for the rediscretized ones
 };
 
 // Pt = P restricted to the rows `rows` (owned global fine indices, ascending) and to the columns that are
@@ -39,9 +47,9 @@ struct Hierarchy {
 PetscErrorCode TruncateTransfer(Mat P, IS rows, IS *cols, Mat *Pt);
 
 // Makes pc a symmetric multigrid V-cycle for A_II = A (the inactive-set block; inactive: its rows, owned
-// global indices of the finest level of h, ascending) with the truncated transfers of h and Galerkin
-// coarse operators; smoother symmetric SOR (one sweep before, one after), BoomerAMG on the coarsest level.
+// global indices of the finest level of h, ascending) with the truncated transfers of h and the coarse
+// operators o chooses; smoother symmetric SOR (one sweep before, one after), BoomerAMG on the coarsest level.
 // The -mg_levels_* and -mg_coarse_* options (with pc's prefix) still decide. Sets pc up.
-PetscErrorCode HierarchyMGSetUp(PC pc, const Hierarchy &h, Mat A, IS inactive);
+PetscErrorCode HierarchyMGSetUp(PC pc, const Hierarchy &h, Mat A, IS inactive, const HierarchyMGOptions &o);
 
 } // namespace signorini
