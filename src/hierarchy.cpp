@@ -37,7 +37,7 @@ PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const 
   const PetscInt *gf, *gc;
   PetscFunctionBeginUser;
   PetscCheck((PetscInt)parent.size() == fine.NumCells(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "parent map has %d entries for %d fine cells", (int)parent.size(), (int)fine.NumCells());
-  PetscCheck(coarse.element == fine.element, PETSC_COMM_SELF, PETSC_ERR_ARG_INCOMP, "prolongation between different elements");
+  PetscCheck(coarse.element == fine.element || coarse.element == Element::P1, PETSC_COMM_SELF, PETSC_ERR_ARG_INCOMP, "prolongation from CR to P1");
   std::vector<PetscReal> count;
   PetscCall(CellsPerDof(fine, count));
   // A row couples the DOFs of at most two parent cells (a CR face on a coarse face); P1 rows hold at most

@@ -6,6 +6,8 @@
 //   - the truncated transfer of an inactive set I (contact DOFs with x < 0.5 active) is P restricted to
 //     the rows of I and the kept coarse columns: embedded back into the full spaces it vanishes on the
 //     active DOFs (where P itself does not) and equals P on I; every coarse column it drops is zero on I;
+//   - CR: the transfer from P1 on the same mesh (the multigrid's level below a CR level) gives each face
+//     the mean of the P1 function's values at the face's vertices, computed here from the cell tables;
 //   - the Galerkin coarse operators of the multigrid preconditioner (PCMG's MatPtAP, on each coarser
 //     level) equal R A P computed directly, column by column, with matrix-vector products only, from
 //     the inactive-set block and the truncated transfers.
@@ -182,6 +184,52 @@ static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
     PetscCall(VecNorm(ref, NORM_INFINITY, &err));
     ck.Check(size > 0.5 && err < 1e-13 * size, tag + Format(" level %d: P uH equals the transfer of transfer.h off Gamma_D", (int)l), "max error %.3e of %.3e", (double)err, (double)size);
     for (Vec *v : {&uH, &uh, &ref}) PetscCall(VecDestroy(v));
+  }
+
+  // 1b. CR: from P1 on the same mesh, each face gets the mean of its vertices' values.
+  if (hc.element == Element::CR) {
+    Space p1;
+    Mat   Q;
+    Vec   v, w, ref, loc;
+    PetscScalar *a;
+    const Space &cr = spaces[L - 1];
+    PetscCall(SpaceCreate(levels.dm[L - 1], Element::P1, problem, p1));
+    std::vector<PetscInt> same(cr.NumCells());
+    for (PetscInt c = 0; c < cr.NumCells(); ++c) same[c] = c;
+    PetscCall(ProlongationMatrix(p1, cr, same, &Q));
+    PetscCall(DMCreateGlobalVector(p1.dm, &v));
+    PetscCall(DMCreateGlobalVector(cr.dm, &w));
+    PetscCall(VecDuplicate(w, &ref));
+    PetscCall(Generic(p1, v));
+    PetscCall(MatMult(Q, v, w));
+    // expected: per face of every cell, the mean over the face's vertices (all but vertex i of face i)
+    PetscCall(DMGetLocalVector(cr.dm, &loc));
+    PetscCall(VecGetArray(loc, &a));
+    for (PetscInt c = 0; c < cr.NumCells(); ++c) {
+      const Space::Coords X = cr.X(c);
+      for (PetscInt i = 0; i < cr.Nb(); ++i) {
+        PetscReal mean = 0;
+        for (PetscInt j = 0; j < cr.Nb(); ++j) {
+          if (j == i) continue;
+          const PetscReal *x = &X.x[j * cr.dim];
+          // Generic() at the vertex, zero where the vertex is a Dirichlet DOF of P1 (on Gamma_D)
+          const bool onDirichlet = p1.kindLocal[cr.cellVert[c * cr.Nb() + j]] == kDirichlet;
+          mean += onDirichlet ? 0.0 : std::sin(7 * x[0] + 3 * x[1] + (cr.dim == 3 ? 5 * x[2] : 0.0)) + 1.5;
+        }
+        a[cr.Dofs(c)[i]] = cr.kindLocal[cr.Dofs(c)[i]] == kDirichlet ? 0.0 : mean / cr.dim;
+      }
+    }
+    PetscCall(VecRestoreArray(loc, &a));
+    PetscCall(DMLocalToGlobal(cr.dm, loc, INSERT_VALUES, ref));
+    PetscCall(DMRestoreLocalVector(cr.dm, &loc));
+    PetscReal err, size;
+    PetscCall(VecNorm(ref, NORM_INFINITY, &size));
+    PetscCall(VecAXPY(ref, -1.0, w));
+    PetscCall(VecNorm(ref, NORM_INFINITY, &err));
+    ck.Check(size > 0.5 && err < 1e-13 * size, tag + " from P1 on the same mesh: each face gets the mean of its vertices", "max error %.3e of %.3e", (double)err, (double)size);
+    for (Vec *x : {&v, &w, &ref}) PetscCall(VecDestroy(x));
+    PetscCall(MatDestroy(&Q));
+    PetscCall(SpaceDestroy(p1));
   }
 
   // 2. The truncated transfer of the finest level.

@@ -26,7 +26,9 @@
 
 namespace signorini {
 
-// P (global fine x global coarse), parent as in transfer.h. Collective.
+// P (global fine x global coarse), parent as in transfer.h. Coarse and fine may also be P1 and CR (P1 is a
+// subspace of CR): on the same mesh (parent[c] = c) a face's row holds 1/d for each of its vertices.
+// Collective.
 PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const std::vector<PetscInt> &parent, Mat *P);
 
 // The transfers between consecutive levels, coarse to fine: P[l] maps level l to level l+1. Only the

@@ -33,7 +33,8 @@ PetscErrorCode NestedOptionsFromCommandLine(MPI_Comm comm, NestedOptions &o);
 // AMG statistics of all levels. With -vi_pc_type mg, the prolongation matrix between each pair of levels
 // is assembled when the finer level is carried to (before the coarse space is freed) and kept, as the only
 // data of the coarse levels, until the finest level is solved: the multigrid of every level's solve uses
-// all transfers below it (hierarchy.h).
+// all transfers below it (hierarchy.h). For CR the multigrid goes from each CR level to P1 on the same
+// mesh and on through the P1 levels (CoarseSpaceTransfers, nested.cpp).
 class NestedIteration : public MeshStrategy {
 public:
   NestedIteration(MeshLevels &levels, const Problem &problem, const PipelineOptions &fine) : levels_(levels), problem_(problem), fine_(fine) {}
@@ -52,5 +53,7 @@ private:
   AmgReuseStats                   amg_;        // of the coarse levels
   double                          prolongSeconds_ = 0;
   Hierarchy                       hierarchy_;  // -vi_pc_type mg: the transfers so far
+  Space                           p1Prev_;     // CR with -vi_pc_type mg: the P1 space of the level before
+  PetscErrorCode                  CoarseSpaceTransfers(PetscInt level, const Space &space);
 };
 } // namespace signorini
