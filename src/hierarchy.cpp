@@ -37,7 +37,7 @@ PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const 
   const PetscInt *gf, *gc;
   PetscFunctionBeginUser;
   PetscCheck((PetscInt)parent.size() == fine.NumCells(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "parent map has %d entries for %d fine cells", (int)parent.size(), (int)fine.NumCells());
-  PetscCheck(coarse.element == fine.element || coarse.element == Element::P1, PETSC_COMM_SELF, PETSC_ERR_ARG_INCOMP, "prolongation from CR to P1");
+  PetscCheck(coarse.element == fine.element, PETSC_COMM_SELF, PETSC_ERR_ARG_INCOMP, "prolongation between different elements");
   // A continuous (P1) coarse function gives every cell holding a fine DOF the same row: each owned DOF is
   // then set once, from the first local cell that holds it (every owned DOF lies in a local cell), with no
   // mean and no communication. Only a CR coarse function needs the mean over the cells of all ranks.
@@ -59,16 +59,21 @@ PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const 
   const PetscInt dim = coarse.dim, nb = coarse.Nb();
   PetscReal      lambda[4], mu[4], x[3];
   for (PetscInt c = 0; c < fine.NumCells(); ++c) {
-    const PetscInt      pc = parent[c];
-    const Space::Coords XH = coarse.X(pc), Xh = fine.X(c);
-    CellGeometry        g;
-    ComputeCellGeometry(dim, XH, g);
+    const PetscInt pc = parent[c];
+    Space::Coords  XH, Xh;
+    CellGeometry   g;
+    bool           haveGeometry = false; // computed for the first DOF of the cell that needs it
     for (PetscInt i = 0; i < nb; ++i) {
       const PetscInt dof = fine.Dofs(c)[i];
       if (fine.kindLocal[dof] == kDirichlet) continue;
       if (once) {
         if (done[dof] || gf[dof] < rStart || gf[dof] >= rEnd) continue;
         done[dof] = 1;
+      }
+      if (!haveGeometry) {
+        XH = coarse.X(pc), Xh = fine.X(c);
+        ComputeCellGeometry(dim, XH, g);
+        haveGeometry = true;
       }
       DofLambda(fine.element, dim, i, mu);
       SimplexPoint(dim, Xh, mu, x);
@@ -88,6 +93,41 @@ PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const 
   PetscCall(ISLocalToGlobalMappingRestoreIndices(fine.ltog, &gf));
   PetscCall(MatAssemblyBegin(*P, MAT_FINAL_ASSEMBLY));
   PetscCall(MatAssemblyEnd(*P, MAT_FINAL_ASSEMBLY));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode P1ToCRMatrix(const Space &p1, const Space &cr, Mat *Q)
+{
+  MPI_Comm        comm = PetscObjectComm((PetscObject)cr.dm);
+  const PetscInt *gf, *gc;
+  PetscInt        rStart, rEnd;
+  PetscFunctionBeginUser;
+  PetscCheck(p1.element == Element::P1 && cr.element == Element::CR && p1.NumCells() == cr.NumCells() && p1.vStart == cr.vStart, PETSC_COMM_SELF, PETSC_ERR_ARG_INCOMP, "P1 to CR needs the two spaces of one mesh");
+  const PetscInt dim = cr.dim, nb = cr.Nb();
+  PetscCall(MatCreateAIJ(comm, cr.numOwned, p1.numOwned, cr.numGlobal, p1.numGlobal, dim, NULL, dim, NULL, Q));
+  PetscCall(MatSetOption(*Q, MAT_NO_OFF_PROC_ENTRIES, PETSC_TRUE));
+  PetscCall(MatGetOwnershipRange(*Q, &rStart, &rEnd));
+  PetscCall(ISLocalToGlobalMappingGetIndices(cr.ltog, &gf));
+  PetscCall(ISLocalToGlobalMappingGetIndices(p1.ltog, &gc));
+  std::vector<char> done(cr.numLocal, 0);
+  for (PetscInt c = 0; c < cr.NumCells(); ++c)
+    for (PetscInt i = 0; i < nb; ++i) { // face i: the vertices of the cell but vertex i (P1 DOF = vertex - vStart)
+      const PetscInt dof = cr.Dofs(c)[i];
+      if (done[dof] || cr.kindLocal[dof] == kDirichlet || gf[dof] < rStart || gf[dof] >= rEnd) continue;
+      done[dof] = 1;
+      PetscInt    cols[3], n = 0;
+      PetscScalar vals[3];
+      for (PetscInt j = 0; j < nb; ++j) {
+        const PetscInt v = cr.cellVert[c * nb + j];
+        if (j == i || p1.kindLocal[v] == kDirichlet) continue;
+        cols[n] = gc[v], vals[n++] = 1.0 / dim;
+      }
+      PetscCall(MatSetValues(*Q, 1, &gf[dof], n, cols, vals, INSERT_VALUES));
+    }
+  PetscCall(ISLocalToGlobalMappingRestoreIndices(p1.ltog, &gc));
+  PetscCall(ISLocalToGlobalMappingRestoreIndices(cr.ltog, &gf));
+  PetscCall(MatAssemblyBegin(*Q, MAT_FINAL_ASSEMBLY));
+  PetscCall(MatAssemblyEnd(*Q, MAT_FINAL_ASSEMBLY));
   PetscFunctionReturn(0);
 }
 

@@ -105,9 +105,7 @@ PetscErrorCode NestedIteration::CoarseSpaceTransfers(PetscInt l, const Space &sp
     PetscCall(ProlongationMatrix(p1Prev_, p1, levels_.parent[l], &P));
     hierarchy_.P.push_back(P);
   }
-  std::vector<PetscInt> same(space.NumCells());
-  for (PetscInt c = 0; c < space.NumCells(); ++c) same[c] = c; // the same mesh: every cell its own parent
-  PetscCall(ProlongationMatrix(p1, space, same, &P));
+  PetscCall(P1ToCRMatrix(p1, space, &P));
   hierarchy_.P.push_back(P);
   std::swap(p1Prev_, p1);
   PetscCall(SpaceDestroy(p1));

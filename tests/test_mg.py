@@ -33,7 +33,7 @@ for name, mesh in [("paper-5.1", ["-box_faces", "4", "-refine", "2"]), ("paper-5
             c.check(len(mg["solver"]["levels"]) == 3, "%s: nested iteration over 3 levels" % tag)
 
 # CG iterations per Newton step over the last three levels (the multigrid has 3 to 5 levels there).
-for name, mesh, bound in [("paper-5.1", ["-box_faces", "8", "-refine", "4"], 10), ("paper-5.1-3d", ["-box_faces", "3", "-refine", "3"], 14)]:
+for name, mesh, bound in [("paper-5.1", ["-box_faces", "8", "-refine", "4"], 8), ("paper-5.1-3d", ["-box_faces", "3", "-refine", "3"], 11)]:
     for space in ["p1", "cr"]:
         _, _, _, s = run(scene(name) + mesh + ["-space", space, "-vi_pc_type", "mg"])
         per = [l["ksp"] / l["newton"] for l in s["solver"]["levels"][-3:]]

@@ -194,9 +194,7 @@ static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
     PetscScalar *a;
     const Space &cr = spaces[L - 1];
     PetscCall(SpaceCreate(levels.dm[L - 1], Element::P1, problem, p1));
-    std::vector<PetscInt> same(cr.NumCells());
-    for (PetscInt c = 0; c < cr.NumCells(); ++c) same[c] = c;
-    PetscCall(ProlongationMatrix(p1, cr, same, &Q));
+    PetscCall(P1ToCRMatrix(p1, cr, &Q));
     PetscCall(DMCreateGlobalVector(p1.dm, &v));
     PetscCall(DMCreateGlobalVector(cr.dm, &w));
     PetscCall(VecDuplicate(w, &ref));

@@ -26,10 +26,11 @@
 
 namespace signorini {
 
-// P (global fine x global coarse), parent as in transfer.h. Coarse and fine may also be P1 and CR (P1 is a
-// subspace of CR): on the same mesh (parent[c] = c) a face's row holds 1/d for each of its vertices.
-// Collective.
+// P (global fine x global coarse), parent as in transfer.h. Collective.
 PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const std::vector<PetscInt> &parent, Mat *P);
+// The embedding of P1 into CR on one mesh (P1 is a subspace of CR): a face's row holds 1/d for each of its
+// vertices (Dirichlet rows and columns empty, as above). Collective.
+PetscErrorCode P1ToCRMatrix(const Space &p1, const Space &cr, Mat *Q);
 
 // The transfers between consecutive levels, coarse to fine: P[l] maps level l to level l+1. Only the
 // matrices are kept (no meshes, no spaces).
