@@ -15,7 +15,6 @@ PetscErrorCode AmgReuseOptionsFromCommandLine(MPI_Comm comm, AmgReuseOptions &o)
   PetscCall(OptionBool(PetscOptionsObject, "-amg_reuse", "Keep the BoomerAMG set-up across Newton steps while the inactive set changes little (off: a new set-up every step)", o.enabled));
   PetscCall(OptionReal(PetscOptionsObject, "-vi_inexact_rtol", "Relative tolerance of the linear solves of Newton steps whose active set still moves; from a nested-iteration guess, of the first step only (0: every step to the KSP tolerance)", o.inexactRtol, 0, 1));
   PetscCall(OptionString(PetscOptionsObject, "-vi_pc_type", "Preconditioner built for the inactive-set blocks of the contact solve (hypre, gamg, ..., or mg: geometric multigrid over the nested-iteration levels, -mg_levels_*/-mg_coarse_* options; -pc_type replaces the whole re-using shell)", o.innerType));
-  PetscCall(OptionBool(PetscOptionsObject, "-vi_mg_galerkin", "With -vi_pc_type mg: Galerkin coarse operators of the truncated transfers (off: the coarse levels' own matrices on the kept DOFs)", o.mgGalerkin));
   PetscCall(OptionInt(PetscOptionsObject, "-amg_reuse_max_changed", "Set BoomerAMG up anew once more than this many DOFs left or joined the inactive set since its last set-up", o.maxChanged, 0, PETSC_MAX_INT));
   PetscOptionsEnd();
   // A tolerance of 1 would accept any step without a linear solve.
@@ -101,7 +100,7 @@ PetscErrorCode BuildAmg(PC pc, Reuse &r, Mat P, const PetscInt *cur, PetscInt n)
   if (r.innerType == PCMG && r.opts.hierarchy && !r.opts.hierarchy->P.empty()) {
     IS inactive;
     PetscCall(ISCreateGeneral(PetscObjectComm((PetscObject)pc), n, cur, PETSC_USE_POINTER, &inactive));
-    PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)pc), HierarchyMGSetUp(r.amg, *r.opts.hierarchy, P, inactive, {r.opts.mgGalerkin, r.opts.scale})));
+    PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)pc), HierarchyMGSetUp(r.amg, *r.opts.hierarchy, P, inactive)));
     PetscCall(ISDestroy(&inactive));
     PetscCall(ReuseRecord(r, cur, n));
     PetscFunctionReturn(0);

@@ -285,7 +285,7 @@ static PetscErrorCode LoosenedStoppingTest(SNES snes, PetscReal atol, PetscReal 
   PetscFunctionReturn(0);
 }
 
-static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &r, const SolveOptions &opts, const DataScale &scale)
+static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &r, const SolveOptions &opts)
 {
   SNES                snes;
   KSP                 ksp;
@@ -307,7 +307,6 @@ static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &
   PetscCall(ConfigureKSP(ksp));
   AmgReuseOptions reuse = opts.amgReuse;
   reuse.goodStart       = opts.initialGuess;
-  reuse.scale           = std::ldexp(1.0, -(int)scale.rows); // the coarse operators of -vi_pc_type mg
   PetscCall(AmgReuseInstall(snes, reuse, &r.amg));
   PetscBool zeroTolSet; // PETSc 3.18 sets the bound tolerance only through its option
   PetscCall(PetscOptionsHasName(NULL, NULL, "-snes_vi_zero_tolerance", &zeroTolSet));
@@ -575,7 +574,7 @@ PetscErrorCode Solve(const Space &space, const Problem &problem, const System &s
   // Start inside K_h: from u_D, or from the guess with u_D on Gamma_D and u >= psi on Gamma_C.
   if (!opts.initialGuess) PetscCall(VecCopy(sys.uD, u));
   PetscCall(ProjectOntoConstraints(sys, space.dirichletOwned, lower, u));
-  if (r.vi) PetscCall(SolveVI(sys, lower, u, r, opts, scale));
+  if (r.vi) PetscCall(SolveVI(sys, lower, u, r, opts));
   else PetscCall(SolveLinear(sys, u, r));
   PetscCall(SecondsSince(comm, t0, &r.solveSeconds));
   PetscCall(StagePop(Stage::Solve));

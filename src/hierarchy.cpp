@@ -135,9 +135,7 @@ PetscErrorCode Hierarchy::Destroy()
 {
   PetscFunctionBeginUser;
   for (Mat &m : P) PetscCall(MatDestroy(&m));
-  for (Mat &m : A) PetscCall(MatDestroy(&m));
   P.clear();
-  A.clear();
   PetscFunctionReturn(0);
 }
 
@@ -187,16 +185,10 @@ PetscErrorCode SetSmoother(PC pc, PetscInt l)
   PetscFunctionReturn(0);
 }
 
-// The operator of level l - 1: the Galerkin product of the level above, or the level's own matrix on the
-// kept DOFs cols, in the units of the solve.
-PetscErrorCode CoarseOperator(const Hierarchy &h, PetscInt l, Mat Afine, Mat Pt, IS cols, const HierarchyMGOptions &o, Mat *Ac)
+// The Galerkin operator Pt^T Afine Pt of the level below.
+PetscErrorCode GalerkinOperator(Mat Afine, Mat Pt, Mat *Ac)
 {
   PetscFunctionBeginUser;
-  if (!o.galerkin) {
-    PetscCall(MatCreateSubMatrix(h.A[l - 1], cols, cols, MAT_INITIAL_MATRIX, Ac));
-    PetscCall(MatScale(*Ac, o.scale));
-    PetscFunctionReturn(0);
-  }
   PetscCall(MatProductCreate(Afine, Pt, NULL, Ac));
   PetscCall(MatProductSetType(*Ac, MATPRODUCT_PtAP));
   PetscCall(MatProductSetFill(*Ac, PETSC_DEFAULT));
@@ -208,7 +200,7 @@ PetscErrorCode CoarseOperator(const Hierarchy &h, PetscInt l, Mat Afine, Mat Pt,
 }
 } // namespace
 
-PetscErrorCode HierarchyMGSetUp(PC pc, const Hierarchy &h, Mat A, IS inactive, const HierarchyMGOptions &o)
+PetscErrorCode HierarchyMGSetUp(PC pc, const Hierarchy &h, Mat A, IS inactive)
 {
   const PetscInt levels = (PetscInt)h.P.size() + 1;
   KSP            ksp;
@@ -216,7 +208,6 @@ PetscErrorCode HierarchyMGSetUp(PC pc, const Hierarchy &h, Mat A, IS inactive, c
   IS             rows = inactive, cols;
   Mat            Afine = A;
   PetscFunctionBeginUser;
-  PetscCheck(o.galerkin || h.A.size() >= h.P.size(), PetscObjectComm((PetscObject)pc), PETSC_ERR_ARG_WRONG, "rediscretized coarse operators need every coarse level's matrix");
   PetscCall(PetscObjectReference((PetscObject)rows));
   PetscCall(PetscObjectReference((PetscObject)Afine));
   PetscCall(PCSetType(pc, PCMG));
@@ -229,7 +220,7 @@ PetscErrorCode HierarchyMGSetUp(PC pc, const Hierarchy &h, Mat A, IS inactive, c
     Mat Pt, Ac;
     PetscCall(TruncateTransfer(h.P[l - 1], rows, &cols, &Pt));
     PetscCall(PCMGSetInterpolation(pc, l, Pt));
-    PetscCall(CoarseOperator(h, l, Afine, Pt, cols, o, &Ac));
+    PetscCall(GalerkinOperator(Afine, Pt, &Ac));
     PetscCall(PCMGGetSmoother(pc, l - 1, &ksp));
     PetscCall(KSPSetOperators(ksp, Ac, Ac));
     PetscCall(SetSmoother(pc, l));

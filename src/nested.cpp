@@ -146,10 +146,6 @@ PetscErrorCode NestedIteration::Solved(MeshSolution &&m)
     amg_.setups += m.result.amg.setups;
     amg_.reuses += m.result.amg.reuses;
     prev_ = std::move(m);
-    if (fine_.solve.amgReuse.innerType == PCMG && !fine_.solve.amgReuse.mgGalerkin) { // the level's operator stays for the multigrid
-      PetscCall(PetscObjectReference((PetscObject)prev_.sys.A));
-      hierarchy_.A.push_back(prev_.sys.A);
-    }
     PetscCall(SystemDestroy(prev_.sys)); // the prolongation needs the space and u only
     PetscFunctionReturn(0);
   }

@@ -294,7 +294,7 @@ static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
     A = sys.A;
     PetscCall(MatCreateSubMatrix(A, inactive, inactive, MAT_INITIAL_MATRIX, &Aii));
     PetscCall(PCCreate(comm, &pc));
-    PetscCall(HierarchyMGSetUp(pc, h, Aii, inactive, {true, 1}));
+    PetscCall(HierarchyMGSetUp(pc, h, Aii, inactive));
     PetscInt nl;
     PetscCall(PCMGGetLevels(pc, &nl));
     ck.Check(nl == L, tag + " the preconditioner has one level per mesh level", "%d levels", (int)nl);

@@ -50,8 +50,6 @@ struct AmgReuseOptions {
   bool      goodStart   = false; // the initial guess carries its active set (nested iteration): only the
                                  // first step is inexact, later ones go to the KSP tolerance
   const Hierarchy *hierarchy = nullptr; // for -vi_pc_type mg: the transfers up to this solve's level
-  bool      mgGalerkin  = true;  // -vi_mg_galerkin (hierarchy.h)
-  PetscReal scale       = 1;     // the factor the solve applies to A (datascale.h)
 };
 PetscErrorCode AmgReuseOptionsFromCommandLine(MPI_Comm comm, AmgReuseOptions &o);
 
