@@ -141,28 +141,36 @@ PetscErrorCode Hierarchy::Destroy()
 
 PetscErrorCode TruncateTransfer(Mat P, IS rows, IS *cols, Mat *Pt)
 {
-  MPI_Comm comm = PetscObjectComm((PetscObject)P);
-  IS       allCols, allRows;
-  Mat      Pr;
-  PetscInt cStart, cEnd, N, rStart, rEnd;
+  MPI_Comm           comm = PetscObjectComm((PetscObject)P);
+  Vec                kept, weight;
+  const PetscInt    *idx;
+  const PetscScalar *w;
+  PetscInt           n, rStart, cStart;
   PetscFunctionBeginUser;
-  PetscCall(MatGetOwnershipRangeColumn(P, &cStart, &cEnd));
-  PetscCall(ISCreateStride(comm, cEnd - cStart, cStart, 1, &allCols));
-  PetscCall(MatCreateSubMatrix(P, rows, allCols, MAT_INITIAL_MATRIX, &Pr));
-  PetscCall(ISDestroy(&allCols));
-  // A coarse DOF whose column vanishes on the kept rows has a zero truncated basis function.
-  PetscCall(MatGetSize(Pr, NULL, &N));
-  std::vector<PetscReal> norms(N);
-  PetscCall(MatGetColumnNorms(Pr, NORM_INFINITY, norms.data()));
-  std::vector<PetscInt> kept;
-  for (PetscInt j = cStart; j < cEnd; ++j)
-    if (norms[j] > 0) kept.push_back(j);
-  PetscCall(ISCreateGeneral(comm, (PetscInt)kept.size(), kept.data(), PETSC_COPY_VALUES, cols));
-  PetscCall(MatGetOwnershipRange(Pr, &rStart, &rEnd));
-  PetscCall(ISCreateStride(comm, rEnd - rStart, rStart, 1, &allRows));
-  PetscCall(MatCreateSubMatrix(Pr, allRows, *cols, MAT_INITIAL_MATRIX, Pt));
-  PetscCall(ISDestroy(&allRows));
-  PetscCall(MatDestroy(&Pr));
+  // A coarse DOF whose column vanishes on the kept rows has a zero truncated basis function: with
+  // nonnegative entries, exactly those get weight 0 in P^T 1_rows (one product, no copy of P).
+  PetscCall(MatCreateVecs(P, &weight, &kept));
+  PetscCall(VecSet(kept, 0));
+  PetscCall(MatGetOwnershipRange(P, &rStart, NULL));
+  PetscCall(ISGetLocalSize(rows, &n));
+  PetscCall(ISGetIndices(rows, &idx));
+  PetscScalar *a;
+  PetscCall(VecGetArray(kept, &a));
+  for (PetscInt k = 0; k < n; ++k) a[idx[k] - rStart] = 1;
+  PetscCall(VecRestoreArray(kept, &a));
+  PetscCall(ISRestoreIndices(rows, &idx));
+  PetscCall(MatMultTranspose(P, kept, weight));
+  PetscCall(MatGetOwnershipRangeColumn(P, &cStart, NULL));
+  PetscCall(VecGetLocalSize(weight, &n));
+  std::vector<PetscInt> keep;
+  PetscCall(VecGetArrayRead(weight, &w));
+  for (PetscInt j = 0; j < n; ++j)
+    if (PetscRealPart(w[j]) > 0) keep.push_back(cStart + j);
+  PetscCall(VecRestoreArrayRead(weight, &w));
+  PetscCall(VecDestroy(&kept));
+  PetscCall(VecDestroy(&weight));
+  PetscCall(ISCreateGeneral(comm, (PetscInt)keep.size(), keep.data(), PETSC_COPY_VALUES, cols));
+  PetscCall(MatCreateSubMatrix(P, rows, *cols, MAT_INITIAL_MATRIX, Pt));
   PetscFunctionReturn(0);
 }
 

@@ -3,6 +3,8 @@
 //   - the assembled prolongation P applied to a coarse function equals the transfer of transfer.h
 //     (Prolongate, tested on its own in unit_prolongation) at every fine DOF that is not Dirichlet, for a
 //     coarse function that vanishes on Gamma_D (P leaves Dirichlet rows and columns empty);
+//   - the multigrid's hierarchy as nested iteration builds it (P1: the transfers above; CR: P1 on every
+//     level, then P1 to CR on the finest mesh), and on it:
 //   - the truncated transfer of an inactive set I (contact DOFs with x < 0.5 active) is P restricted to
 //     the rows of I and the kept coarse columns: embedded back into the full spaces it vanishes on the
 //     active DOFs (where P itself does not) and equals P on I; every coarse column it drops is zero on I;
@@ -186,14 +188,32 @@ static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
     for (Vec *v : {&uH, &uh, &ref}) PetscCall(VecDestroy(v));
   }
 
+  // The multigrid's hierarchy, as nested iteration builds it: P1 the transfers above; CR P1 on every level
+  // with its transfers, then from P1 to CR on the finest mesh.
+  const bool         cr = hc.element == Element::CR;
+  std::vector<Space> p1s(cr ? L : 0);
+  Hierarchy          mg;
+  for (PetscInt l = 0; cr && l < L; ++l) {
+    PetscCall(SpaceCreate(levels.dm[l], Element::P1, problem, p1s[l]));
+    if (l == 0) continue;
+    Mat P;
+    PetscCall(ProlongationMatrix(p1s[l - 1], p1s[l], levels.parent[l], &P));
+    mg.P.push_back(P);
+  }
+  if (!cr)
+    for (Mat P : h.P) {
+      PetscCall(PetscObjectReference((PetscObject)P));
+      mg.P.push_back(P);
+    }
+  const Space &below = cr ? p1s[L - 1] : spaces[L - 2]; // the space below the finest level
+
   // 1b. CR: from P1 on the same mesh, each face gets the mean of its vertices' values.
-  if (hc.element == Element::CR) {
-    Space p1;
-    Mat   Q;
+  if (cr) {
+    const Space &p1 = p1s[L - 1];
+    Mat          Q;
     Vec   v, w, ref, loc;
     PetscScalar *a;
     const Space &cr = spaces[L - 1];
-    PetscCall(SpaceCreate(levels.dm[L - 1], Element::P1, problem, p1));
     PetscCall(P1ToCRMatrix(p1, cr, &Q));
     PetscCall(DMCreateGlobalVector(p1.dm, &v));
     PetscCall(DMCreateGlobalVector(cr.dm, &w));
@@ -226,8 +246,7 @@ static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
     PetscCall(VecNorm(ref, NORM_INFINITY, &err));
     ck.Check(size > 0.5 && err < 1e-13 * size, tag + " from P1 on the same mesh: each face gets the mean of its vertices", "max error %.3e of %.3e", (double)err, (double)size);
     for (Vec *x : {&v, &w, &ref}) PetscCall(VecDestroy(x));
-    PetscCall(MatDestroy(&Q));
-    PetscCall(SpaceDestroy(p1));
+    mg.P.push_back(Q);
   }
 
   // 2. The truncated transfer of the finest level.
@@ -235,19 +254,19 @@ static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
   Mat               Pt;
   std::vector<char> active;
   PetscCall(TestInactiveSet(spaces[L - 1], &inactive, active));
-  PetscCall(TruncateTransfer(h.P[L - 2], inactive, &kept, &Pt));
+  PetscCall(TruncateTransfer(mg.P.back(), inactive, &kept, &Pt));
   {
     Vec       xc, xk, y, yFull, ref;
     PetscReal onActive = 0, refOnActive = 0, onInactive = 0, dropped = 0;
-    PetscCall(MatCreateVecs(h.P[L - 2], &xc, &ref));
+    PetscCall(MatCreateVecs(mg.P.back(), &xc, &ref));
     PetscCall(VecDuplicate(ref, &yFull));
     PetscCall(MatCreateVecs(Pt, &xk, &y));
-    PetscCall(Generic(spaces[L - 2], xc));
+    PetscCall(Generic(below, xc));
     PetscCall(RestrictTo(kept, xc, xk));
     PetscCall(MatMult(Pt, xk, y));
     PetscCall(Embed(inactive, y, yFull));
     PetscCall(Embed(kept, xk, xc)); // xc: zero off the kept columns now
-    PetscCall(MatMult(h.P[L - 2], xc, ref));
+    PetscCall(MatMult(mg.P.back(), xc, ref));
     const PetscScalar *a, *b;
     PetscCall(VecGetArrayRead(yFull, &a));
     PetscCall(VecGetArrayRead(ref, &b));
@@ -259,7 +278,7 @@ static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
     PetscCall(VecRestoreArrayRead(yFull, &a));
     PetscCall(VecDestroy(&yFull));
     // The dropped columns: a coarse function on them only is zero on I.
-    PetscCall(Generic(spaces[L - 2], xc));
+    PetscCall(Generic(below, xc));
     {
       Vec mask;
       PetscCall(VecDuplicate(xc, &mask));
@@ -267,7 +286,7 @@ static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
       PetscCall(Embed(kept, xk, mask));
       PetscCall(VecShift(mask, -1.0));
       PetscCall(VecPointwiseMult(xc, xc, mask)); // -xc on the dropped columns, 0 on the kept ones
-      PetscCall(MatMult(h.P[L - 2], xc, ref));
+      PetscCall(MatMult(mg.P.back(), xc, ref));
       PetscCall(VecGetArrayRead(ref, &b));
       for (PetscInt i = 0; i < spaces[L - 1].numOwned; ++i)
         if (!active[i]) dropped = std::max(dropped, std::fabs(PetscRealPart(b[i])));
@@ -294,10 +313,11 @@ static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
     A = sys.A;
     PetscCall(MatCreateSubMatrix(A, inactive, inactive, MAT_INITIAL_MATRIX, &Aii));
     PetscCall(PCCreate(comm, &pc));
-    PetscCall(HierarchyMGSetUp(pc, h, Aii, inactive));
+    PetscCall(HierarchyMGSetUp(pc, mg, Aii, inactive));
     PetscInt nl;
     PetscCall(PCMGGetLevels(pc, &nl));
-    ck.Check(nl == L, tag + " the preconditioner has one level per mesh level", "%d levels", (int)nl);
+    const PetscInt expected = cr ? L + 1 : L;
+    ck.Check(nl == expected, tag + " the preconditioner has one level per mesh level (CR: and P1 on the finest mesh)", "%d levels", (int)nl);
     for (PetscInt l = nl - 1; l > 0; --l) {
       KSP       fineK, coarseK;
       Mat       Af, Ac, P;
@@ -310,7 +330,7 @@ static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
       PetscCall(GalerkinError(Af, P, Ac, &err));
       ck.Check(err < 1e-13, tag + Format(" level %d: the Galerkin coarse operator equals R A P", (int)(l - 1)), "max relative error %.3e", (double)err);
     }
-    if (nl == L) {
+    if (nl == expected) {
       // the finest level operates with the inactive-set block itself
       KSP k;
       Mat Af;
@@ -326,6 +346,8 @@ static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
   PetscCall(ISDestroy(&kept));
   PetscCall(ISDestroy(&inactive));
   PetscCall(h.Destroy());
+  PetscCall(mg.Destroy());
+  for (Space &s : p1s) PetscCall(SpaceDestroy(s));
   for (Space &s : spaces) PetscCall(SpaceDestroy(s));
   PetscCall(MeshLevelsDestroy(levels));
   PetscCall(DMDestroy(&fineDM));

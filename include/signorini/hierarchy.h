@@ -41,7 +41,9 @@ struct Hierarchy {
 };
 
 // Pt = P restricted to the rows `rows` (owned global fine indices, ascending) and to the columns that are
-// not zero there, listed in *cols (owned global coarse indices, ascending). Collective.
+// not zero there, listed in *cols (owned global coarse indices, ascending). P's entries must be
+// nonnegative, as those of the multigrid's transfers are (P1 basis values, vertex means): the CR-to-CR
+// prolongation has negative ones and is not truncated. Collective.
 PetscErrorCode TruncateTransfer(Mat P, IS rows, IS *cols, Mat *Pt);
 
 // Makes pc a symmetric multigrid V-cycle for A_II = A (the inactive-set block; inactive: its rows, owned
