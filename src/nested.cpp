@@ -85,7 +85,8 @@ PetscErrorCode NestedIteration::Next(Step &step, bool &more)
 // hierarchy of the coarser meshes, whose transfers are exact too. The Galerkin operator of the CR level on
 // P1 is the P1 stiffness matrix (seven entries a row in 2D) where the Galerkin products of the CR
 // prolongation grow denser on every level. Built while the level's mesh exists: the P1 space of the level
-// before is kept until then, the transfer from CR to P1 of the level before is replaced.
+// before is kept until then (the finest level's is not kept), the transfer from CR to P1 of the level
+// before is replaced.
 PetscErrorCode NestedIteration::CoarseSpaceTransfers(PetscInt l, const Space &space)
 {
   Space          p1;
@@ -109,6 +110,7 @@ PetscErrorCode NestedIteration::CoarseSpaceTransfers(PetscInt l, const Space &sp
   hierarchy_.P.push_back(P);
   std::swap(p1Prev_, p1);
   PetscCall(SpaceDestroy(p1));
+  if (l + 1 == levels_.Count()) PetscCall(SpaceDestroy(p1Prev_)); // no level after the finest needs it
   PetscCall(SecondsSince(PetscObjectComm((PetscObject)P), t0, &seconds));
   prolongSeconds_ += seconds;
   PetscFunctionReturn(0);
