@@ -414,7 +414,9 @@ PetscErrorCode AmgReuseJacobian(SNES snes, Mat A, Mat *J)
     PetscCall(PCShellGetName(pc, &name));
     Reuse *r;
     PetscCall(PCShellGetContext(pc, &r));
-    hypre = name && std::string(name) == kShellName && r->innerType == PCHYPRE;
+    // -vi_pc_type mg without a hierarchy (a single mesh, the coarsest level of P1) is BoomerAMG too
+    const bool noHierarchy = !r->opts.hierarchy || r->opts.hierarchy->P.empty();
+    hypre = name && std::string(name) == kShellName && (r->innerType == PCHYPRE || (r->innerType == PCMG && noHierarchy));
   }
   if (!hypre) {
     PetscCall(PetscObjectReference((PetscObject)A));
