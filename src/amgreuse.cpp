@@ -1,4 +1,5 @@
 #include "signorini/amgreuse.h"
+#include "signorini/hierarchy.h"
 #include "signorini/options.h"
 #include "signorini/common.h"
 
@@ -13,7 +14,7 @@ PetscErrorCode AmgReuseOptionsFromCommandLine(MPI_Comm comm, AmgReuseOptions &o)
   PetscOptionsBegin(comm, "", "Linear solves of the Newton steps of the contact solve", "signorini");
   PetscCall(OptionBool(PetscOptionsObject, "-amg_reuse", "Keep the BoomerAMG set-up across Newton steps while the inactive set changes little (off: a new set-up every step)", o.enabled));
   PetscCall(OptionReal(PetscOptionsObject, "-vi_inexact_rtol", "Relative tolerance of the linear solves of Newton steps whose active set still moves; from a nested-iteration guess, of the first step only (0: every step to the KSP tolerance)", o.inexactRtol, 0, 1));
-  PetscCall(OptionString(PetscOptionsObject, "-vi_pc_type", "Preconditioner built for the inactive-set blocks of the contact solve (hypre, gamg, ...; -pc_type replaces the whole re-using shell)", o.innerType));
+  PetscCall(OptionString(PetscOptionsObject, "-vi_pc_type", "Preconditioner built for the inactive-set blocks of the contact solve (hypre, gamg, ..., or mg: geometric multigrid over the nested-iteration levels, -mg_levels_*/-mg_coarse_* options; -pc_type replaces the whole re-using shell)", o.innerType));
   PetscCall(OptionInt(PetscOptionsObject, "-amg_reuse_max_changed", "Set BoomerAMG up anew once more than this many DOFs left or joined the inactive set since its last set-up", o.maxChanged, 0, PETSC_MAX_INT));
   PetscOptionsEnd();
   // A tolerance of 1 would accept any step without a linear solve.
@@ -71,6 +72,19 @@ PetscInt MatchSets(const PetscInt *cur, PetscInt n, const std::vector<PetscInt> 
 
 PetscErrorCode BlockToHypre(Mat B, Mat *H);
 
+// The set cur (n entries) becomes the reference of a fresh set-up.
+PetscErrorCode ReuseRecord(Reuse &r, const PetscInt *cur, PetscInt n)
+{
+  PetscFunctionBeginUser;
+  r.ref.assign(cur, cur + n);
+  r.map.resize(n);
+  for (PetscInt k = 0; k < n; ++k) r.map[k] = k;
+  r.same  = true;
+  r.fresh = true;
+  if (r.stats) r.stats->setups++;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode BuildAmg(PC pc, Reuse &r, Mat P, const PetscInt *cur, PetscInt n)
 {
   const char *prefix;
@@ -83,6 +97,15 @@ PetscErrorCode BuildAmg(PC pc, Reuse &r, Mat P, const PetscInt *cur, PetscInt n)
   PetscCall(PCCreate(PetscObjectComm((PetscObject)pc), &r.amg));
   PetscCall(PCGetOptionsPrefix(pc, &prefix));
   PetscCall(PCSetOptionsPrefix(r.amg, prefix));
+  if (r.innerType == PCMG && r.opts.hierarchy && !r.opts.hierarchy->P.empty()) {
+    IS inactive;
+    PetscCall(ISCreateGeneral(PetscObjectComm((PetscObject)pc), n, cur, PETSC_USE_POINTER, &inactive));
+    PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)pc), HierarchyMGSetUp(r.amg, *r.opts.hierarchy, P, inactive)));
+    PetscCall(ISDestroy(&inactive));
+    PetscCall(ReuseRecord(r, cur, n));
+    PetscFunctionReturn(0);
+  }
+  if (r.innerType == PCMG) r.innerType = PCHYPRE; // no hierarchy (a single mesh, the coarsest level)
   // an unknown -vi_pc_type or -pc_ option is found here, inside the solve, but on all ranks alike
   PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)pc), PCSetType(r.amg, r.innerType.c_str())));
   if (r.innerType == PCHYPRE) PetscCall(PCHYPRESetType(r.amg, "boomeramg"));
@@ -93,12 +116,7 @@ PetscErrorCode BuildAmg(PC pc, Reuse &r, Mat P, const PetscInt *cur, PetscInt n)
   PetscCall(PCSetOperators(r.amg, H, H));
   PetscCall(PCSetUp(r.amg));
   if (lazy) PetscCall(MatDestroy(&H)); // the PC keeps its reference
-  r.ref.assign(cur, cur + n);
-  r.map.resize(n);
-  for (PetscInt k = 0; k < n; ++k) r.map[k] = k;
-  r.same  = true;
-  r.fresh = true;
-  if (r.stats) r.stats->setups++;
+  PetscCall(ReuseRecord(r, cur, n));
   PetscFunctionReturn(0);
 }
 
@@ -396,7 +414,9 @@ PetscErrorCode AmgReuseJacobian(SNES snes, Mat A, Mat *J)
     PetscCall(PCShellGetName(pc, &name));
     Reuse *r;
     PetscCall(PCShellGetContext(pc, &r));
-    hypre = name && std::string(name) == kShellName && r->innerType == PCHYPRE;
+    // -vi_pc_type mg without a hierarchy (a single mesh, the coarsest level of P1) is BoomerAMG too
+    const bool noHierarchy = !r->opts.hierarchy || r->opts.hierarchy->P.empty();
+    hypre = name && std::string(name) == kShellName && (r->innerType == PCHYPRE || (r->innerType == PCMG && noHierarchy));
   }
   if (!hypre) {
     PetscCall(PetscObjectReference((PetscObject)A));

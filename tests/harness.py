@@ -42,6 +42,15 @@ class Checker:
         else:
             self.failed += 1
 
+    def kkt(self, tag, s):
+        """The discrete KKT conditions of a converged contact solve (summary s) to solver tolerance."""
+        k = s["kkt"]
+        self.check(s["solver"]["converged_reason"].startswith("CONVERGED"), "%s: %s" % (tag, s["solver"]["converged_reason"]))
+        self.check(k["min_gap"] >= -1e-12, "%s: primal feasibility min(u - psi) = %.2e" % (tag, k["min_gap"]))
+        self.check(k["min_pressure"] >= -1e-7 * k["max_pressure"], "%s: dual feasibility min pressure = %.2e (max %.2e)" % (tag, k["min_pressure"], k["max_pressure"]))
+        self.check(k["max_complementarity"] <= 1e-7 * max(k["max_pressure"] * k["max_gap"], 1e-300), "%s: complementarity %.2e" % (tag, k["max_complementarity"]))
+        self.check(s["stationarity"] <= 1e-8, "%s: equation residual off Gamma_C %.2e" % (tag, s["stationarity"]))
+
     def done(self):
         print("%d passed, %d failed" % (self.passed, self.failed))
         sys.exit(1 if self.failed else 0)

@@ -7,6 +7,7 @@
 // tolerance as without nested iteration.
 #pragma once
 
+#include "signorini/hierarchy.h"
 #include "signorini/mesh.h"
 #include "signorini/strategy.h"
 #include "signorini/transfer.h"
@@ -29,7 +30,11 @@ PetscErrorCode NestedOptionsFromCommandLine(MPI_Comm comm, NestedOptions &o);
 // freed once carried (its system already when solved), so that the solves, and above all the finest one,
 // the peak of the run's memory, do not hold them. `finest` receives the finest solution, its result with
 // one entry per level in result.levels, the time of all solves together in result.solveSeconds and the
-// AMG statistics of all levels.
+// AMG statistics of all levels. With -vi_pc_type mg, the prolongation matrix between each pair of levels
+// is assembled when the finer level is carried to (before the coarse space is freed) and kept, as the only
+// data of the coarse levels, until the finest level is solved: the multigrid of every level's solve uses
+// all transfers below it (hierarchy.h). For CR the multigrid goes from each CR level to P1 on the same
+// mesh and on through the P1 levels (CoarseSpaceTransfers, nested.cpp).
 class NestedIteration : public MeshStrategy {
 public:
   NestedIteration(MeshLevels &levels, const Problem &problem, const PipelineOptions &fine) : levels_(levels), problem_(problem), fine_(fine) {}
@@ -47,5 +52,8 @@ private:
   std::vector<SolveResult::Level> summary_;
   AmgReuseStats                   amg_;        // of the coarse levels
   double                          prolongSeconds_ = 0;
+  Hierarchy                       hierarchy_;  // -vi_pc_type mg: the transfers so far
+  Space                           p1Prev_;     // CR with -vi_pc_type mg: the P1 space of the level before
+  PetscErrorCode                  CoarseSpaceTransfers(PetscInt level, const Space &space);
 };
 } // namespace signorini

@@ -1,0 +1,380 @@
+// Unit tests of the multigrid transfers over the refinement hierarchy (hierarchy.h), P1 and CR, 2D and 3D,
+// on however many ranks the test runs (ctest: 1 and 2), over three nested levels:
+//   - the assembled prolongation P applied to a coarse function equals the transfer of transfer.h
+//     (Prolongate, tested on its own in unit_prolongation) at every fine DOF that is not Dirichlet, for a
+//     coarse function that vanishes on Gamma_D (P leaves Dirichlet rows and columns empty);
+//   - the multigrid's hierarchy as nested iteration builds it (P1: the transfers above; CR: P1 on every
+//     level, then P1 to CR on the finest mesh), and on it:
+//   - the truncated transfer of an inactive set I (contact DOFs with x < 0.5 active) is P restricted to
+//     the rows of I and the kept coarse columns: embedded back into the full spaces it vanishes on the
+//     active DOFs (where P itself does not) and equals P on I; every coarse column it drops is zero on I;
+//   - CR: the transfer from P1 on the same mesh (the multigrid's level below a CR level) gives each face
+//     the mean of the P1 function's values at the face's vertices, computed here from the cell tables;
+//   - the Galerkin coarse operators of the multigrid preconditioner (PCMG's MatPtAP, on each coarser
+//     level) equal R A P computed directly, column by column, with matrix-vector products only, from
+//     the inactive-set block and the truncated transfers.
+#include "signorini/assembly.h"
+#include "signorini/hierarchy.h"
+#include "signorini/mesh.h"
+#include "signorini/stages.h"
+#include "signorini/transfer.h"
+#include "unit_check.h"
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+using namespace signorini;
+
+struct HierarchyCase {
+  std::string name;
+  MeshOptions mesh;
+  Element     element;
+  PetscInt    dirichlet, contact;
+};
+
+// A smooth generic function of the DOF points, zero at Dirichlet DOFs: a global vector of the space.
+static PetscErrorCode Generic(const Space &s, Vec u)
+{
+  Vec          loc;
+  PetscScalar *a;
+  PetscFunctionBeginUser;
+  const std::vector<PetscReal> points = DofPoints(s);
+  PetscCall(DMGetLocalVector(s.dm, &loc));
+  PetscCall(VecGetArray(loc, &a));
+  for (PetscInt i = 0; i < s.numLocal; ++i) {
+    const PetscReal *x = &points[i * s.dim];
+    a[i]               = s.kindLocal[i] == kDirichlet ? 0.0 : std::sin(7 * x[0] + 3 * x[1] + (s.dim == 3 ? 5 * x[2] : 0.0)) + 1.5;
+  }
+  PetscCall(VecRestoreArray(loc, &a));
+  PetscCall(DMLocalToGlobal(s.dm, loc, INSERT_VALUES, u));
+  PetscCall(DMRestoreLocalVector(s.dm, &loc));
+  PetscFunctionReturn(0);
+}
+
+// The inactive set of the test: every owned DOF except contact DOFs with x < 0.5 (owned global indices).
+static PetscErrorCode TestInactiveSet(const Space &s, IS *inactive, std::vector<char> &active)
+{
+  PetscInt rstart;
+  Vec      u;
+  PetscFunctionBeginUser;
+  PetscCall(DMCreateGlobalVector(s.dm, &u));
+  PetscCall(VecGetOwnershipRange(u, &rstart, NULL));
+  // The owned x coordinate of every DOF, through the layout (owned index -> point).
+  Vec          loc;
+  PetscScalar *a;
+  const std::vector<PetscReal> points = DofPoints(s);
+  PetscCall(DMGetLocalVector(s.dm, &loc));
+  PetscCall(VecGetArray(loc, &a));
+  for (PetscInt i = 0; i < s.numLocal; ++i) a[i] = points[i * s.dim];
+  PetscCall(VecRestoreArray(loc, &a));
+  PetscCall(DMLocalToGlobal(s.dm, loc, INSERT_VALUES, u));
+  PetscCall(DMRestoreLocalVector(s.dm, &loc));
+  std::vector<char> isContact(s.numOwned, 0);
+  for (PetscInt i : s.contactOwned) isContact[i] = 1;
+  const PetscScalar    *x;
+  std::vector<PetscInt> idx;
+  active.assign(s.numOwned, 0);
+  PetscCall(VecGetArrayRead(u, &x));
+  for (PetscInt i = 0; i < s.numOwned; ++i) {
+    active[i] = isContact[i] && PetscRealPart(x[i]) < 0.5;
+    if (!active[i]) idx.push_back(rstart + i);
+  }
+  PetscCall(VecRestoreArrayRead(u, &x));
+  PetscCall(VecDestroy(&u));
+  PetscCall(ISCreateGeneral(PETSC_COMM_WORLD, (PetscInt)idx.size(), idx.data(), PETSC_COPY_VALUES, inactive));
+  PetscFunctionReturn(0);
+}
+
+// full = embedding of the sub-vector (entries at the global indices `kept`) into a vector of full's size.
+static PetscErrorCode Embed(IS kept, Vec sub, Vec full)
+{
+  VecScatter sc;
+  PetscFunctionBeginUser;
+  PetscCall(VecSet(full, 0));
+  PetscCall(VecScatterCreate(sub, NULL, full, kept, &sc));
+  PetscCall(VecScatterBegin(sc, sub, full, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(sc, sub, full, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterDestroy(&sc));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode RestrictTo(IS kept, Vec full, Vec sub)
+{
+  VecScatter sc;
+  PetscFunctionBeginUser;
+  PetscCall(VecScatterCreate(full, kept, sub, NULL, &sc));
+  PetscCall(VecScatterBegin(sc, full, sub, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(sc, full, sub, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterDestroy(&sc));
+  PetscFunctionReturn(0);
+}
+
+// max over the columns e_j of |R A P e_j - Ac e_j| / max |Ac|, R = P^T, from matrix-vector products only.
+static PetscErrorCode GalerkinError(Mat A, Mat P, Mat Ac, PetscReal *err)
+{
+  Vec       e, Pe, APe, RAPe, Ace;
+  PetscInt  N, cstart, cend;
+  PetscReal scale;
+  PetscFunctionBeginUser;
+  PetscCall(MatCreateVecs(P, &e, &Pe));
+  PetscCall(VecDuplicate(Pe, &APe));
+  PetscCall(VecDuplicate(e, &RAPe));
+  PetscCall(VecDuplicate(e, &Ace));
+  PetscCall(VecGetSize(e, &N));
+  PetscCall(VecGetOwnershipRange(e, &cstart, &cend));
+  PetscCall(MatNorm(Ac, NORM_INFINITY, &scale));
+  *err = 0;
+  for (PetscInt j = 0; j < N; ++j) {
+    PetscReal d;
+    PetscCall(VecSet(e, 0));
+    if (j >= cstart && j < cend) PetscCall(VecSetValue(e, j, 1.0, INSERT_VALUES));
+    PetscCall(VecAssemblyBegin(e));
+    PetscCall(VecAssemblyEnd(e));
+    PetscCall(MatMult(P, e, Pe));
+    PetscCall(MatMult(A, Pe, APe));
+    PetscCall(MatMultTranspose(P, APe, RAPe));
+    PetscCall(MatMult(Ac, e, Ace));
+    PetscCall(VecAXPY(Ace, -1.0, RAPe));
+    PetscCall(VecNorm(Ace, NORM_INFINITY, &d));
+    *err = std::max(*err, d / scale);
+  }
+  for (Vec *v : {&e, &Pe, &APe, &RAPe, &Ace}) PetscCall(VecDestroy(v));
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
+{
+  MPI_Comm           comm = PETSC_COMM_WORLD;
+  const std::string &tag  = hc.name;
+  DM                 fineDM;
+  MeshInfo           info;
+  MeshLevels         levels;
+  Problem            problem;
+  PetscFunctionBeginUser;
+  PetscCall(MeshCreate(comm, hc.mesh, &fineDM, info, &levels, -1));
+  const PetscInt L = levels.Count();
+  ck.Check(L == 3, tag + " three nested levels", "%d levels", (int)L);
+  PetscCall(unit::MakeProblem(comm, hc.mesh.dim, {{hc.dirichlet}, {hc.contact}, "1", "0", "0", "0"}, problem));
+  std::vector<Space> spaces(L);
+  for (PetscInt l = 0; l < L; ++l) PetscCall(SpaceCreate(levels.dm[l], hc.element, problem, spaces[l]));
+  Hierarchy h;
+  for (PetscInt l = 1; l < L; ++l) {
+    Mat P;
+    PetscCall(ProlongationMatrix(spaces[l - 1], spaces[l], levels.parent[l], &P));
+    h.P.push_back(P);
+  }
+
+  // 1. P uH = Prolongate(uH) off Gamma_D, for every pair of levels.
+  for (PetscInt l = 1; l < L; ++l) {
+    Vec       uH, uh, ref;
+    PetscReal err, size;
+    PetscCall(DMCreateGlobalVector(spaces[l - 1].dm, &uH));
+    PetscCall(DMCreateGlobalVector(spaces[l].dm, &uh));
+    PetscCall(VecDuplicate(uh, &ref));
+    PetscCall(Generic(spaces[l - 1], uH));
+    PetscCall(MatMult(h.P[l - 1], uH, uh));
+    PetscCall(Prolongate(spaces[l - 1], uH, spaces[l], levels.parent[l], ref));
+    {
+      PetscScalar *a;
+      PetscCall(VecGetArray(ref, &a));
+      for (PetscInt i : spaces[l].dirichletOwned) a[i] = 0;
+      PetscCall(VecRestoreArray(ref, &a));
+    }
+    PetscCall(VecNorm(ref, NORM_INFINITY, &size));
+    PetscCall(VecAXPY(ref, -1.0, uh));
+    PetscCall(VecNorm(ref, NORM_INFINITY, &err));
+    ck.Check(size > 0.5 && err < 1e-13 * size, tag + Format(" level %d: P uH equals the transfer of transfer.h off Gamma_D", (int)l), "max error %.3e of %.3e", (double)err, (double)size);
+    for (Vec *v : {&uH, &uh, &ref}) PetscCall(VecDestroy(v));
+  }
+
+  // The multigrid's hierarchy, as nested iteration builds it: P1 the transfers above; CR P1 on every level
+  // with its transfers, then from P1 to CR on the finest mesh.
+  const bool         cr = hc.element == Element::CR;
+  std::vector<Space> p1s(cr ? L : 0);
+  Hierarchy          mg;
+  for (PetscInt l = 0; cr && l < L; ++l) {
+    PetscCall(SpaceCreate(levels.dm[l], Element::P1, problem, p1s[l]));
+    if (l == 0) continue;
+    Mat P;
+    PetscCall(ProlongationMatrix(p1s[l - 1], p1s[l], levels.parent[l], &P));
+    mg.P.push_back(P);
+  }
+  if (!cr)
+    for (Mat P : h.P) {
+      PetscCall(PetscObjectReference((PetscObject)P));
+      mg.P.push_back(P);
+    }
+  const Space &below = cr ? p1s[L - 1] : spaces[L - 2]; // the space below the finest level
+
+  // 1b. CR: from P1 on the same mesh, each face gets the mean of its vertices' values.
+  if (cr) {
+    const Space &p1 = p1s[L - 1];
+    Mat          Q;
+    Vec   v, w, ref, loc;
+    PetscScalar *a;
+    const Space &cr = spaces[L - 1];
+    PetscCall(P1ToCRMatrix(p1, cr, &Q));
+    PetscCall(DMCreateGlobalVector(p1.dm, &v));
+    PetscCall(DMCreateGlobalVector(cr.dm, &w));
+    PetscCall(VecDuplicate(w, &ref));
+    PetscCall(Generic(p1, v));
+    PetscCall(MatMult(Q, v, w));
+    // expected: per face of every cell, the mean over the face's vertices (all but vertex i of face i)
+    PetscCall(DMGetLocalVector(cr.dm, &loc));
+    PetscCall(VecGetArray(loc, &a));
+    for (PetscInt c = 0; c < cr.NumCells(); ++c) {
+      const Space::Coords X = cr.X(c);
+      for (PetscInt i = 0; i < cr.Nb(); ++i) {
+        PetscReal mean = 0;
+        for (PetscInt j = 0; j < cr.Nb(); ++j) {
+          if (j == i) continue;
+          const PetscReal *x = &X.x[j * cr.dim];
+          // Generic() at the vertex, zero where the vertex is a Dirichlet DOF of P1 (on Gamma_D)
+          const bool onDirichlet = p1.kindLocal[cr.cellVert[c * cr.Nb() + j]] == kDirichlet;
+          mean += onDirichlet ? 0.0 : std::sin(7 * x[0] + 3 * x[1] + (cr.dim == 3 ? 5 * x[2] : 0.0)) + 1.5;
+        }
+        a[cr.Dofs(c)[i]] = cr.kindLocal[cr.Dofs(c)[i]] == kDirichlet ? 0.0 : mean / cr.dim;
+      }
+    }
+    PetscCall(VecRestoreArray(loc, &a));
+    PetscCall(DMLocalToGlobal(cr.dm, loc, INSERT_VALUES, ref));
+    PetscCall(DMRestoreLocalVector(cr.dm, &loc));
+    PetscReal err, size;
+    PetscCall(VecNorm(ref, NORM_INFINITY, &size));
+    PetscCall(VecAXPY(ref, -1.0, w));
+    PetscCall(VecNorm(ref, NORM_INFINITY, &err));
+    ck.Check(size > 0.5 && err < 1e-13 * size, tag + " from P1 on the same mesh: each face gets the mean of its vertices", "max error %.3e of %.3e", (double)err, (double)size);
+    for (Vec *x : {&v, &w, &ref}) PetscCall(VecDestroy(x));
+    mg.P.push_back(Q);
+  }
+
+  // 2. The truncated transfer of the finest level.
+  IS                inactive, kept;
+  Mat               Pt;
+  std::vector<char> active;
+  PetscCall(TestInactiveSet(spaces[L - 1], &inactive, active));
+  PetscCall(TruncateTransfer(mg.P.back(), inactive, &kept, &Pt));
+  {
+    Vec       xc, xk, y, yFull, ref;
+    PetscReal onActive = 0, refOnActive = 0, onInactive = 0, dropped = 0;
+    PetscCall(MatCreateVecs(mg.P.back(), &xc, &ref));
+    PetscCall(VecDuplicate(ref, &yFull));
+    PetscCall(MatCreateVecs(Pt, &xk, &y));
+    PetscCall(Generic(below, xc));
+    PetscCall(RestrictTo(kept, xc, xk));
+    PetscCall(MatMult(Pt, xk, y));
+    PetscCall(Embed(inactive, y, yFull));
+    PetscCall(Embed(kept, xk, xc)); // xc: zero off the kept columns now
+    PetscCall(MatMult(mg.P.back(), xc, ref));
+    const PetscScalar *a, *b;
+    PetscCall(VecGetArrayRead(yFull, &a));
+    PetscCall(VecGetArrayRead(ref, &b));
+    for (PetscInt i = 0; i < spaces[L - 1].numOwned; ++i) {
+      if (active[i]) onActive = std::max(onActive, std::fabs(PetscRealPart(a[i]))), refOnActive = std::max(refOnActive, std::fabs(PetscRealPart(b[i])));
+      else onInactive = std::max(onInactive, std::fabs(PetscRealPart(a[i] - b[i])));
+    }
+    PetscCall(VecRestoreArrayRead(ref, &b));
+    PetscCall(VecRestoreArrayRead(yFull, &a));
+    PetscCall(VecDestroy(&yFull));
+    // The dropped columns: a coarse function on them only is zero on I.
+    PetscCall(Generic(below, xc));
+    {
+      Vec mask;
+      PetscCall(VecDuplicate(xc, &mask));
+      PetscCall(VecSet(xk, 1));
+      PetscCall(Embed(kept, xk, mask));
+      PetscCall(VecShift(mask, -1.0));
+      PetscCall(VecPointwiseMult(xc, xc, mask)); // -xc on the dropped columns, 0 on the kept ones
+      PetscCall(MatMult(mg.P.back(), xc, ref));
+      PetscCall(VecGetArrayRead(ref, &b));
+      for (PetscInt i = 0; i < spaces[L - 1].numOwned; ++i)
+        if (!active[i]) dropped = std::max(dropped, std::fabs(PetscRealPart(b[i])));
+      PetscCall(VecRestoreArrayRead(ref, &b));
+      PetscCall(VecDestroy(&mask));
+    }
+    PetscReal r[4] = {onActive, refOnActive, onInactive, dropped};
+    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, r, 4, MPIU_REAL, MPI_MAX, comm));
+    PetscInt nActive = 0;
+    for (char c : active) nActive += c;
+    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &nActive, 1, MPIU_INT, MPI_SUM, comm));
+    ck.Check(nActive > 0 && r[0] == 0 && r[1] > 0.1, tag + " the truncated transfer vanishes on the active DOFs (P does not)", "%d active, truncated %.3e, P %.3e", (int)nActive, (double)r[0], (double)r[1]);
+    ck.Check(r[2] < 1e-14, tag + " the truncated transfer equals P on the inactive rows", "max difference %.3e", (double)r[2]);
+    ck.Check(r[3] == 0, tag + " every dropped coarse column is zero on the inactive rows", "max %.3e", (double)r[3]);
+    for (Vec *v : {&xc, &xk, &y, &ref}) PetscCall(VecDestroy(v));
+  }
+
+  // 3. The Galerkin coarse operators of the preconditioner on every coarser level equal R A P.
+  {
+    Mat A, Aii;
+    PC  pc;
+    System sys;
+    PetscCall(AssembleSystem(spaces[L - 1], problem, AssemblyOptions(), sys));
+    A = sys.A;
+    PetscCall(MatCreateSubMatrix(A, inactive, inactive, MAT_INITIAL_MATRIX, &Aii));
+    PetscCall(PCCreate(comm, &pc));
+    PetscCall(HierarchyMGSetUp(pc, mg, Aii, inactive));
+    PetscInt nl;
+    PetscCall(PCMGGetLevels(pc, &nl));
+    const PetscInt expected = cr ? L + 1 : L;
+    ck.Check(nl == expected, tag + " the preconditioner has one level per mesh level (CR: and P1 on the finest mesh)", "%d levels", (int)nl);
+    for (PetscInt l = nl - 1; l > 0; --l) {
+      KSP       fineK, coarseK;
+      Mat       Af, Ac, P;
+      PetscReal err = PETSC_MAX_REAL;
+      PetscCall(PCMGGetSmoother(pc, l, &fineK));
+      PetscCall(PCMGGetSmoother(pc, l - 1, &coarseK));
+      PetscCall(KSPGetOperators(fineK, &Af, NULL));
+      PetscCall(KSPGetOperators(coarseK, &Ac, NULL));
+      PetscCall(PCMGGetInterpolation(pc, l, &P));
+      PetscCall(GalerkinError(Af, P, Ac, &err));
+      ck.Check(err < 1e-13, tag + Format(" level %d: the Galerkin coarse operator equals R A P", (int)(l - 1)), "max relative error %.3e", (double)err);
+    }
+    if (nl == expected) {
+      // the finest level operates with the inactive-set block itself
+      KSP k;
+      Mat Af;
+      PetscCall(PCMGGetSmoother(pc, nl - 1, &k));
+      PetscCall(KSPGetOperators(k, &Af, NULL));
+      ck.Check(Af == Aii, tag + " the finest level operator is the inactive-set block");
+    }
+    PetscCall(PCDestroy(&pc));
+    PetscCall(MatDestroy(&Aii));
+    PetscCall(SystemDestroy(sys));
+  }
+  PetscCall(MatDestroy(&Pt));
+  PetscCall(ISDestroy(&kept));
+  PetscCall(ISDestroy(&inactive));
+  PetscCall(h.Destroy());
+  PetscCall(mg.Destroy());
+  for (Space &s : p1s) PetscCall(SpaceDestroy(s));
+  for (Space &s : spaces) PetscCall(SpaceDestroy(s));
+  PetscCall(MeshLevelsDestroy(levels));
+  PetscCall(DMDestroy(&fineDM));
+  PetscFunctionReturn(0);
+}
+
+int main(int argc, char **argv)
+{
+  PetscErrorCode ierr = PetscInitialize(&argc, &argv, NULL, NULL);
+  if (ierr) return ierr;
+  unit::Checker ck;
+  ierr = StagesRegister();
+  std::vector<HierarchyCase> cases;
+  for (Element e : {Element::P1, Element::CR}) {
+    HierarchyCase c2;
+    c2.mesh.dim = 2, c2.mesh.faces[0] = 5, c2.mesh.faces[1] = 3, c2.mesh.refine = 2, c2.mesh.coarsen = false;
+    c2.element = e, c2.dirichlet = 3, c2.contact = 1, c2.name = Format("2D 5x3 %s", ElementName(e));
+    HierarchyCase c3;
+    c3.mesh.dim = 3, c3.mesh.faces[0] = 2, c3.mesh.faces[1] = 2, c3.mesh.faces[2] = 1, c3.mesh.refine = 2, c3.mesh.coarsen = false;
+    c3.element = e, c3.dirichlet = 2, c3.contact = 1, c3.name = Format("3D 2x2x1 %s", ElementName(e));
+    cases.push_back(c2), cases.push_back(c3);
+  }
+  for (const HierarchyCase &hc : cases) {
+    ierr = TestCase(ck, hc);
+    if (ierr) ck.PetscFailure(ierr, hc.name + " (PETSc error)");
+  }
+  const int rc = ck.Finish();
+  ierr         = PetscFinalize();
+  return rc ? rc : ierr;
+}
