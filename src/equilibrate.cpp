@@ -172,24 +172,25 @@ void FillCorner(const Space &space, const CellData &cd, const PetscInt *gidx, Pe
 }
 
 // Solves L z = b in place (z in b) for L symmetric positive definite, row-major N x N, by Cholesky's
-// factorisation (lower triangle overwritten; col: scratch of N reals). Returns false if L is not positive
-// definite. Every loop is ordered so that its inner updates are independent of each other (outer
-// products, not dot products: a dot product's sum waits for each term, as the compiler may not reorder
-// it), and the update by a zero of the factor is skipped: the patch matrices are sparse graph Laplacians
-// (at most 4 entries a row), and much of their factor stays zero.
-bool SolveSPD(PetscInt N, PetscReal *L, PetscReal *b, PetscReal *col)
+// factorisation (lower triangle overwritten; nz: scratch of N indices). Returns false if L is not positive
+// definite. The patch matrices are sparse graph Laplacians (at most 4 entries a row) and much of their
+// factor stays zero: each step updates only the products of the column's nonzeros (listed in nz), which
+// skips exactly the updates by a zero (they change nothing), so the factor is the dense one's.
+bool SolveSPD(PetscInt N, PetscReal *L, PetscReal *b, PetscInt *nz)
 {
   for (PetscInt k = 0; k < N; ++k) {
     const PetscReal d = L[k * N + k];
     if (!(d > 0)) return false;
     const PetscReal r = std::sqrt(d), inv = 1.0 / r;
     L[k * N + k]      = r;
-    for (PetscInt i = k + 1; i < N; ++i) col[i] = L[i * N + k] *= inv;
-    for (PetscInt i = k + 1; i < N; ++i) {
-      const PetscReal lik = col[i];
-      if (lik == 0) continue;
-      PetscReal *Li = &L[i * N];
-      for (PetscInt j = k + 1; j <= i; ++j) Li[j] -= lik * col[j];
+    PetscInt n        = 0;
+    for (PetscInt i = k + 1; i < N; ++i)
+      if ((L[i * N + k] *= inv) != 0) nz[n++] = i;
+    for (PetscInt a = 0; a < n; ++a) {
+      const PetscInt  i   = nz[a];
+      const PetscReal lik = L[i * N + k];
+      PetscReal      *Li  = &L[i * N];
+      for (PetscInt c = 0; c <= a; ++c) Li[nz[c]] -= lik * L[nz[c] * N + k];
     }
   }
   for (PetscInt j = 0; j < N; ++j) { // L y = b, by columns
@@ -253,8 +254,10 @@ private:
   // The faces containing a, matched between the patch's cells by their vertices' global numbers.
   void MatchFaces()
   {
+    // Sized once and filled by index: the growing push_back was a call per face.
     std::vector<Key> &keys = keys_;
-    keys.clear();
+    keys.resize(n_ * (nb_ - 1));
+    size_t nk = 0;
     for (PetscInt e = 0; e < n_; ++e) {
       const Corner &c = corners_[e];
       for (PetscInt j = 0; j < nb_; ++j) {
@@ -262,7 +265,7 @@ private:
         uint64_t lo = UINT32_MAX, hi = 0; // the vertices other than a and j
         for (PetscInt i = 0; i < nb_; ++i)
           if (i != j && i != c.corner) lo = std::min<uint64_t>(lo, (uint32_t)c.gid[i]), hi = std::max<uint64_t>(hi, (uint32_t)c.gid[i]);
-        keys.push_back({nb_ == 3 ? lo : (lo << 32 | hi), e, j});
+        keys[nk++] = {nb_ == 3 ? lo : (lo << 32 | hi), e, j};
       }
     }
     // Pair the keys through a small open-addressing hash table (a sort costs more at 70 keys in 3D).
@@ -277,23 +280,25 @@ private:
       if (table_[h] < 0) table_[h] = (PetscInt)i;
       else partner_[table_[h]] = (PetscInt)i, partner_[i] = table_[h];
     }
-    sides_.clear();
+    sides_.resize(n);
+    size_t ns = 0;
     fixedSides_.clear();
     for (size_t i = 0; i < n; ++i) {
       const Key &k = keys[i];
       if (partner_[i] >= 0) {
         if (partner_[i] < (PetscInt)i) continue; // listed with its partner
         const Key &o = keys[partner_[i]];
-        sides_.push_back({k.entry, k.face, -1, 1.0});
-        sides_.push_back({o.entry, o.face, -1, -1.0});
+        sides_[ns++] = {k.entry, k.face, -1, 1.0};
+        sides_[ns++] = {o.entry, o.face, -1, -1.0};
         continue;
       }
       const Corner  &c    = corners_[k.entry];
       const PetscInt kind = c.kind[k.face];
       const bool     free = kind == kFaceDirichlet || (kind == kFaceContact && vertexKind_ != kDirichlet);
-      if (free) sides_.push_back({k.entry, k.face, -1, 1.0});
+      if (free) sides_[ns++] = {k.entry, k.face, -1, 1.0};
       else fixedSides_.push_back({k.entry, k.face, kind == kFaceNeumann ? c.neumann[k.face] : 0.0});
     }
+    sides_.resize(ns);
     Renumber();
   }
 
@@ -372,8 +377,8 @@ private:
       for (size_t k = i > 0 ? i - 1 : 0; k < std::min(i + 2, sides_.size()); ++k)
         if (sides_[k].unknown == s.unknown && sides_[k].entry < rows) L_[s.entry * rows + sides_[k].entry] += s.sign * sides_[k].sign / h_[s.unknown];
     }
-    col_.resize(rows);
-    if (!SolveSPD(rows, L_.data(), mu_.data(), col_.data())) return false;
+    nz_.resize(rows);
+    if (!SolveSPD(rows, L_.data(), mu_.data(), nz_.data())) return false;
     for (PetscInt u = 0; u < m; ++u) x_[u] = c_[u];
     for (const Side &s : sides_)
       if (s.entry < rows) x_[s.unknown] -= s.sign * mu_[s.entry];
@@ -392,8 +397,8 @@ private:
   std::vector<char>      contact_;
   bool                   boundaryUnknown_ = false;
   std::vector<Key>       keys_;
-  std::vector<PetscInt>  table_, partner_;
-  std::vector<PetscReal> x_, h_, c_, L_, mu_, col_, fixed_, rhs_, resid_;
+  std::vector<PetscInt>  table_, partner_, nz_;
+  std::vector<PetscReal> x_, h_, c_, L_, mu_, fixed_, rhs_, resid_;
 };
 
 } // namespace
