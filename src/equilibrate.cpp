@@ -64,10 +64,17 @@ struct Corner {
   PetscReal volume;
 };
 
-// Per local cell, what every corner record of the cell repeats.
+// Per local cell, what every corner record of the cell repeats, in one record a cell: a patch reads its
+// cells' records, and one record is one or two cache lines where separate arrays were six.
+struct CellRecord {
+  PetscInt  gid[4]    = {0, 0, 0, 0}; // as in Corner
+  PetscInt  kind[4]   = {kFaceOther, kFaceOther, kFaceOther, kFaceOther};
+  PetscReal weight[4] = {0, 0, 0, 0}, target[4] = {0, 0, 0, 0};
+  PetscReal load[4]   = {0, 0, 0, 0}; // int_T f psi_k
+  PetscReal volume    = 0;
+};
 struct CellData {
-  std::vector<PetscReal> weight, target, load, volume; // nb, nb, nb (int_T f psi_k), 1 per cell
-  std::vector<char>      kind;                       // FaceKind per cell face
+  std::vector<CellRecord> cell;
   std::unordered_map<PetscInt, std::array<PetscReal, 4>> neumann; // cell*nb + j -> int_{F_j} g psi_k, k = 0..d
 };
 
@@ -96,45 +103,44 @@ bool Contains(const std::vector<PetscInt> &parts, PetscInt p) { return std::find
 
 // The loads by the assembly's rules (AssembleCells, AssembleNeumann), per vertex of each cell, and the
 // cells' oscillations that come with them.
-PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, CellData &cd, std::vector<PetscReal> &oscillation)
+PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, const PetscInt *gidx, CellData &cd, std::vector<PetscReal> &oscillation)
 {
   const PetscInt nb = space.Nb(), dim = space.dim, nc = space.NumCells();
   std::string    error;
   PetscReal      x[3], lambda[4];
   PetscFunctionBeginUser;
-  cd.weight.resize(nc * nb);
-  cd.target.resize(nc * nb);
-  cd.load.assign(nc * nb, 0.0);
-  cd.volume.resize(nc);
-  cd.kind.assign(nc * nb, kFaceOther);
+  cd.cell.assign(nc, CellRecord());
   oscillation.resize(nc);
   std::vector<PetscReal> work;
   for (PetscInt c = 0; c < nc; ++c) {
     CellGeometry        g;
     const Space::Coords X = space.X(c);
     ComputeCellGeometry(dim, X, g);
-    cd.volume[c]        = g.volume;
+    CellRecord &rec     = cd.cell[c];
+    rec.volume          = g.volume;
     const PetscReal kap = sys.Kappa(c);
+    for (PetscInt j = 0; j < nb; ++j) rec.gid[j] = gidx[space.cellVert[c * nb + j]];
     PetscReal       G[3];
     space.Grad(c, u, g, G);
-    RT0MassDiagonal(dim, X, g.volume, &cd.weight[c * nb]);
-    for (PetscInt j = 0; j < nb; ++j) cd.weight[c * nb + j] /= kap;
+    RT0MassDiagonal(dim, X, g.volume, rec.weight);
+    for (PetscInt j = 0; j < nb; ++j) rec.weight[j] /= kap;
     for (PetscInt j = 0; j < nb; ++j) {
       PetscReal dot = 0; // |F_j| n_j = -d |T| grad lambda_j
       for (PetscInt d = 0; d < dim; ++d) dot += kap * G[d] * g.gradLambda[j][d];
-      cd.target[c * nb + j] = -g.volume * dot;
+      rec.target[j] = -g.volume * dot;
     }
     CellLoad load;
     GetCellLoad(space, problem, sys, c, X, g, work, load, error);
-    for (PetscInt k = 0; k < nb; ++k) cd.load[c * nb + k] = load.moment[k];
+    for (PetscInt k = 0; k < nb; ++k) rec.load[k] = load.moment[k];
     oscillation[c] = load.oscillation;
   }
   for (const BoundaryFace &bf : space.boundary) {
     const PetscInt at = bf.cell * nb + bf.opposite;
-    if (Contains(problem.dirichlet, bf.part)) cd.kind[at] = kFaceDirichlet;
-    else if (Contains(problem.contact, bf.part)) cd.kind[at] = kFaceContact;
+    PetscInt      &kind = cd.cell[bf.cell].kind[bf.opposite];
+    if (Contains(problem.dirichlet, bf.part)) kind = kFaceDirichlet;
+    else if (Contains(problem.contact, bf.part)) kind = kFaceContact;
     else if (Contains(problem.neumann, bf.part)) {
-      cd.kind[at] = kFaceNeumann;
+      kind = kFaceNeumann;
       if (!problem.HasNeumann()) continue;
       std::array<PetscReal, 4> share{0, 0, 0, 0};
       const PetscReal          area = space.FaceMeasure(bf);
@@ -152,23 +158,22 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
   PetscFunctionReturn(0);
 }
 
-void FillCorner(const Space &space, const CellData &cd, const PetscInt *gidx, PetscInt c, PetscInt k, Corner &r)
+void FillCorner(const CellData &cd, PetscInt nb, PetscInt c, PetscInt k, Corner &r)
 {
-  const PetscInt nb = space.Nb();
-  r.corner = k;
-  for (PetscInt j = 0; j < nb; ++j) {
-    r.gid[j]     = gidx[space.cellVert[c * nb + j]];
-    r.kind[j]    = cd.kind[c * nb + j];
-    r.target[j]  = cd.target[c * nb + j];
-    r.neumann[j] = 0;
-    r.weight[j]  = cd.weight[c * nb + j];
-    if (r.kind[j] == kFaceNeumann) {
+  const CellRecord &rec = cd.cell[c];
+  r.corner              = k;
+  std::copy(rec.gid, rec.gid + 4, r.gid);
+  std::copy(rec.kind, rec.kind + 4, r.kind);
+  std::copy(rec.weight, rec.weight + 4, r.weight);
+  std::copy(rec.target, rec.target + 4, r.target);
+  for (PetscInt j = 0; j < 4; ++j) r.neumann[j] = 0;
+  for (PetscInt j = 0; j < nb; ++j)
+    if (rec.kind[j] == kFaceNeumann) {
       const auto it = cd.neumann.find(c * nb + j);
       if (it != cd.neumann.end()) r.neumann[j] = it->second[k];
     }
-  }
-  r.load   = cd.load[c * nb + k];
-  r.volume = cd.volume[c];
+  r.load   = rec.load[k];
+  r.volume = rec.volume;
 }
 
 // Solves L z = b in place (z in b) for L symmetric positive definite, row-major N x N, by Cholesky's
@@ -418,11 +423,13 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   Vec                loc;
   const PetscScalar *ua;
   CellData           cd;
+  const PetscInt    *gidx;
+  PetscCall(ISLocalToGlobalMappingGetIndices(space.ltog, &gidx));
   PetscCall(DMGetLocalVector(space.dm, &loc));
   PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, loc));
   PetscCall(VecGetArrayRead(loc, &ua));
   PetscCall(PetscLogEventBegin(cellEvent, 0, 0, 0, 0));
-  PetscCall(ComputeCellData(space, problem, sys, ua, cd, r.oscillation));
+  PetscCall(ComputeCellData(space, problem, sys, ua, gidx, cd, r.oscillation));
   PetscCall(PetscLogEventEnd(cellEvent, 0, 0, 0, 0));
   PetscCall(VecRestoreArrayRead(loc, &ua));
 
@@ -451,12 +458,10 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscCall(VecRestoreArrayRead(loc, &ua));
   PetscCall(DMRestoreLocalVector(space.dm, &loc));
 
-  const PetscInt *gidx;
   std::vector<PetscInt> ranges;
   PetscMPIInt           rank;
   PetscCallMPI(MPI_Comm_rank(comm, &rank));
   PetscCall(OwnershipRanges(comm, space.numOwned, ranges));
-  PetscCall(ISLocalToGlobalMappingGetIndices(space.ltog, &gidx));
   const auto owned = [&](PetscInt v) { return gidx[v] >= ranges[rank] && gidx[v] < ranges[rank + 1]; };
 
   r.flux.assign(nc * nb, 0.0);
@@ -487,7 +492,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
     out.resize(n * nb);
     for (PetscInt e = 0; e < n; ++e) {
       cells[e] = at[e] / nb;
-      FillCorner(space, cd, gidx, cells[e], at[e] - cells[e] * nb, corners[e]);
+      FillCorner(cd, nb, cells[e], at[e] - cells[e] * nb, corners[e]);
     }
     ok = patch.Solve(space.kindLocal[v], corners.data(), n, out.data());
     for (PetscInt e = 0; e < n && ok; ++e)
@@ -517,7 +522,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscInt nmulti = 0;
   for (PetscInt i = 0; i < space.numOwned; ++i) nmulti += degree[i];
   std::vector<Corner> leafCorners(leafAt.size()), rootCorners(nmulti);
-  for (size_t l = 0; l < leafAt.size(); ++l) FillCorner(space, cd, gidx, leafAt[l] / nb, leafAt[l] % nb, leafCorners[l]);
+  for (size_t l = 0; l < leafAt.size(); ++l) FillCorner(cd, nb, leafAt[l] / nb, leafAt[l] % nb, leafCorners[l]);
   PetscCall(ISLocalToGlobalMappingRestoreIndices(space.ltog, &gidx));
   MPI_Datatype cornerType, fluxType;
   PetscCallMPI(MPI_Type_contiguous((int)sizeof(Corner), MPI_BYTE, &cornerType));
