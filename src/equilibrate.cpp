@@ -162,11 +162,10 @@ void FillCorner(const CellData &cd, PetscInt nb, PetscInt c, PetscInt k, Corner 
 {
   const CellRecord &rec = cd.cell[c];
   r.corner              = k;
-  std::copy(rec.gid, rec.gid + 4, r.gid);
-  std::copy(rec.kind, rec.kind + 4, r.kind);
-  std::copy(rec.weight, rec.weight + 4, r.weight);
-  std::copy(rec.target, rec.target + 4, r.target);
-  for (PetscInt j = 0; j < 4; ++j) r.neumann[j] = 0;
+  for (PetscInt j = 0; j < 4; ++j) { // element by element: std::copy made a library call of 16 or 32 bytes
+    r.gid[j] = rec.gid[j], r.kind[j] = rec.kind[j];
+    r.weight[j] = rec.weight[j], r.target[j] = rec.target[j], r.neumann[j] = 0;
+  }
   for (PetscInt j = 0; j < nb; ++j)
     if (rec.kind[j] == kFaceNeumann) {
       const auto it = cd.neumann.find(c * nb + j);
@@ -177,36 +176,39 @@ void FillCorner(const CellData &cd, PetscInt nb, PetscInt c, PetscInt k, Corner 
 }
 
 // Solves L z = b in place (z in b) for L symmetric positive definite, row-major N x N, by Cholesky's
-// factorisation (lower triangle overwritten; nz: scratch of N indices). Returns false if L is not positive
-// definite. The patch matrices are sparse graph Laplacians (at most 4 entries a row) and much of their
-// factor stays zero: each step updates only the products of the column's nonzeros (listed in nz), which
-// skips exactly the updates by a zero (they change nothing), so the factor is the dense one's.
-bool SolveSPD(PetscInt N, PetscReal *L, PetscReal *b, PetscInt *nz)
+// factorisation (lower triangle overwritten). Returns false if L is not positive definite. The patch
+// matrices are sparse graph Laplacians (at most 4 entries a row) and much of their factor stays zero:
+// the rows of each column's nonzeros below the diagonal are listed (column k: nz[start[k] .. start[k+1]),
+// ascending; start: N + 1 entries, nz: N (N - 1) / 2), and the factorisation and both triangular solves
+// touch only those. Every entry sees the dense algorithm's operations in its order, less the updates by
+// a zero (which change nothing), so the result is the dense one's.
+bool SolveSPD(PetscInt N, PetscReal *L, PetscReal *b, PetscInt *start, PetscInt *nz)
 {
+  start[0] = 0;
   for (PetscInt k = 0; k < N; ++k) {
     const PetscReal d = L[k * N + k];
     if (!(d > 0)) return false;
     const PetscReal r = std::sqrt(d), inv = 1.0 / r;
     L[k * N + k]      = r;
-    PetscInt n        = 0;
+    PetscInt *col     = &nz[start[k]], n = 0;
     for (PetscInt i = k + 1; i < N; ++i)
-      if ((L[i * N + k] *= inv) != 0) nz[n++] = i;
+      if ((L[i * N + k] *= inv) != 0) col[n++] = i;
+    start[k + 1] = start[k] + n;
     for (PetscInt a = 0; a < n; ++a) {
-      const PetscInt  i   = nz[a];
+      const PetscInt  i   = col[a];
       const PetscReal lik = L[i * N + k];
       PetscReal      *Li  = &L[i * N];
-      for (PetscInt c = 0; c <= a; ++c) Li[nz[c]] -= lik * L[nz[c] * N + k];
+      for (PetscInt c = 0; c <= a; ++c) Li[col[c]] -= lik * L[col[c] * N + k];
     }
   }
   for (PetscInt j = 0; j < N; ++j) { // L y = b, by columns
     b[j] /= L[j * N + j];
     if (b[j] == 0) continue;
-    for (PetscInt i = j + 1; i < N; ++i) b[i] -= L[i * N + j] * b[j];
+    for (PetscInt p = start[j]; p < start[j + 1]; ++p) b[nz[p]] -= L[nz[p] * N + j] * b[j];
   }
-  for (PetscInt i = N - 1; i >= 0; --i) { // L^T z = y, by rows of L
-    b[i] /= L[i * N + i];
-    const PetscReal *Li = &L[i * N];
-    for (PetscInt j = 0; j < i; ++j) b[j] -= Li[j] * b[i];
+  for (PetscInt j = N - 1; j >= 0; --j) { // L^T z = y: z_j from the z_i, i > j, of column j's nonzeros
+    for (PetscInt p = start[j + 1] - 1; p >= start[j]; --p) b[j] -= L[nz[p] * N + j] * b[nz[p]];
+    b[j] /= L[j * N + j];
   }
   return true;
 }
@@ -382,8 +384,9 @@ private:
       for (size_t k = i > 0 ? i - 1 : 0; k < std::min(i + 2, sides_.size()); ++k)
         if (sides_[k].unknown == s.unknown && sides_[k].entry < rows) L_[s.entry * rows + sides_[k].entry] += s.sign * sides_[k].sign / h_[s.unknown];
     }
-    nz_.resize(rows);
-    if (!SolveSPD(rows, L_.data(), mu_.data(), nz_.data())) return false;
+    start_.resize(rows + 1);
+    nz_.resize(rows * (rows - 1) / 2 + 1);
+    if (!SolveSPD(rows, L_.data(), mu_.data(), start_.data(), nz_.data())) return false;
     for (PetscInt u = 0; u < m; ++u) x_[u] = c_[u];
     for (const Side &s : sides_)
       if (s.entry < rows) x_[s.unknown] -= s.sign * mu_[s.entry];
@@ -402,7 +405,7 @@ private:
   std::vector<char>      contact_;
   bool                   boundaryUnknown_ = false;
   std::vector<Key>       keys_;
-  std::vector<PetscInt>  table_, partner_, nz_;
+  std::vector<PetscInt>  table_, partner_, start_, nz_;
   std::vector<PetscReal> x_, h_, c_, L_, mu_, fixed_, rhs_, resid_;
 };
 
