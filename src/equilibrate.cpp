@@ -64,10 +64,17 @@ struct Corner {
   PetscReal volume;
 };
 
-// Per local cell, what every corner record of the cell repeats.
+// Per local cell, what every corner record of the cell repeats, in one record a cell: a patch reads its
+// cells' records, and one record is one or two cache lines where separate arrays were six.
+struct CellRecord {
+  PetscInt  gid[4]    = {0, 0, 0, 0}; // as in Corner
+  PetscInt  kind[4]   = {kFaceOther, kFaceOther, kFaceOther, kFaceOther};
+  PetscReal weight[4] = {0, 0, 0, 0}, target[4] = {0, 0, 0, 0};
+  PetscReal load[4]   = {0, 0, 0, 0}; // int_T f psi_k
+  PetscReal volume    = 0;
+};
 struct CellData {
-  std::vector<PetscReal> weight, target, load, volume; // nb, nb, nb (int_T f psi_k), 1 per cell
-  std::vector<char>      kind;                       // FaceKind per cell face
+  std::vector<CellRecord> cell;
   std::unordered_map<PetscInt, std::array<PetscReal, 4>> neumann; // cell*nb + j -> int_{F_j} g psi_k, k = 0..d
 };
 
@@ -96,45 +103,44 @@ bool Contains(const std::vector<PetscInt> &parts, PetscInt p) { return std::find
 
 // The loads by the assembly's rules (AssembleCells, AssembleNeumann), per vertex of each cell, and the
 // cells' oscillations that come with them.
-PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, CellData &cd, std::vector<PetscReal> &oscillation)
+PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, const PetscInt *gidx, CellData &cd, std::vector<PetscReal> &oscillation)
 {
   const PetscInt nb = space.Nb(), dim = space.dim, nc = space.NumCells();
   std::string    error;
   PetscReal      x[3], lambda[4];
   PetscFunctionBeginUser;
-  cd.weight.resize(nc * nb);
-  cd.target.resize(nc * nb);
-  cd.load.assign(nc * nb, 0.0);
-  cd.volume.resize(nc);
-  cd.kind.assign(nc * nb, kFaceOther);
+  cd.cell.assign(nc, CellRecord());
   oscillation.resize(nc);
   std::vector<PetscReal> work;
   for (PetscInt c = 0; c < nc; ++c) {
     CellGeometry        g;
     const Space::Coords X = space.X(c);
     ComputeCellGeometry(dim, X, g);
-    cd.volume[c]        = g.volume;
+    CellRecord &rec     = cd.cell[c];
+    rec.volume          = g.volume;
     const PetscReal kap = sys.Kappa(c);
+    for (PetscInt j = 0; j < nb; ++j) rec.gid[j] = gidx[space.cellVert[c * nb + j]];
     PetscReal       G[3];
     space.Grad(c, u, g, G);
-    RT0MassDiagonal(dim, X, g.volume, &cd.weight[c * nb]);
-    for (PetscInt j = 0; j < nb; ++j) cd.weight[c * nb + j] /= kap;
+    RT0MassDiagonal(dim, X, g.volume, rec.weight);
+    for (PetscInt j = 0; j < nb; ++j) rec.weight[j] /= kap;
     for (PetscInt j = 0; j < nb; ++j) {
       PetscReal dot = 0; // |F_j| n_j = -d |T| grad lambda_j
       for (PetscInt d = 0; d < dim; ++d) dot += kap * G[d] * g.gradLambda[j][d];
-      cd.target[c * nb + j] = -g.volume * dot;
+      rec.target[j] = -g.volume * dot;
     }
     CellLoad load;
     GetCellLoad(space, problem, sys, c, X, g, work, load, error);
-    for (PetscInt k = 0; k < nb; ++k) cd.load[c * nb + k] = load.moment[k];
+    for (PetscInt k = 0; k < nb; ++k) rec.load[k] = load.moment[k];
     oscillation[c] = load.oscillation;
   }
   for (const BoundaryFace &bf : space.boundary) {
     const PetscInt at = bf.cell * nb + bf.opposite;
-    if (Contains(problem.dirichlet, bf.part)) cd.kind[at] = kFaceDirichlet;
-    else if (Contains(problem.contact, bf.part)) cd.kind[at] = kFaceContact;
+    PetscInt      &kind = cd.cell[bf.cell].kind[bf.opposite];
+    if (Contains(problem.dirichlet, bf.part)) kind = kFaceDirichlet;
+    else if (Contains(problem.contact, bf.part)) kind = kFaceContact;
     else if (Contains(problem.neumann, bf.part)) {
-      cd.kind[at] = kFaceNeumann;
+      kind = kFaceNeumann;
       if (!problem.HasNeumann()) continue;
       std::array<PetscReal, 4> share{0, 0, 0, 0};
       const PetscReal          area = space.FaceMeasure(bf);
@@ -152,55 +158,57 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
   PetscFunctionReturn(0);
 }
 
-void FillCorner(const Space &space, const CellData &cd, const PetscInt *gidx, PetscInt c, PetscInt k, Corner &r)
+void FillCorner(const CellData &cd, PetscInt nb, PetscInt c, PetscInt k, Corner &r)
 {
-  const PetscInt nb = space.Nb();
-  r.corner = k;
-  for (PetscInt j = 0; j < nb; ++j) {
-    r.gid[j]     = gidx[space.cellVert[c * nb + j]];
-    r.kind[j]    = cd.kind[c * nb + j];
-    r.target[j]  = cd.target[c * nb + j];
-    r.neumann[j] = 0;
-    r.weight[j]  = cd.weight[c * nb + j];
-    if (r.kind[j] == kFaceNeumann) {
+  const CellRecord &rec = cd.cell[c];
+  r.corner              = k;
+  for (PetscInt j = 0; j < 4; ++j) { // element by element: std::copy made a library call of 16 or 32 bytes
+    r.gid[j] = rec.gid[j], r.kind[j] = rec.kind[j];
+    r.weight[j] = rec.weight[j], r.target[j] = rec.target[j], r.neumann[j] = 0;
+  }
+  for (PetscInt j = 0; j < nb; ++j)
+    if (rec.kind[j] == kFaceNeumann) {
       const auto it = cd.neumann.find(c * nb + j);
       if (it != cd.neumann.end()) r.neumann[j] = it->second[k];
     }
-  }
-  r.load   = cd.load[c * nb + k];
-  r.volume = cd.volume[c];
+  r.load   = rec.load[k];
+  r.volume = rec.volume;
 }
 
 // Solves L z = b in place (z in b) for L symmetric positive definite, row-major N x N, by Cholesky's
-// factorisation (lower triangle overwritten; col: scratch of N reals). Returns false if L is not positive
-// definite. Every loop is ordered so that its inner updates are independent of each other (outer
-// products, not dot products: a dot product's sum waits for each term, as the compiler may not reorder
-// it), and the update by a zero of the factor is skipped: the patch matrices are sparse graph Laplacians
-// (at most 4 entries a row), and much of their factor stays zero.
-bool SolveSPD(PetscInt N, PetscReal *L, PetscReal *b, PetscReal *col)
+// factorisation (lower triangle overwritten). Returns false if L is not positive definite. The patch
+// matrices are sparse graph Laplacians (at most 4 entries a row) and much of their factor stays zero:
+// the rows of each column's nonzeros below the diagonal are listed (column k: nz[start[k] .. start[k+1]),
+// ascending; start: N + 1 entries, nz: N (N - 1) / 2), and the factorisation and both triangular solves
+// touch only those. Every entry sees the dense algorithm's operations in its order, less the updates by
+// a zero (which change nothing), so the result is the dense one's.
+bool SolveSPD(PetscInt N, PetscReal *L, PetscReal *b, PetscInt *start, PetscInt *nz)
 {
+  start[0] = 0;
   for (PetscInt k = 0; k < N; ++k) {
     const PetscReal d = L[k * N + k];
     if (!(d > 0)) return false;
     const PetscReal r = std::sqrt(d), inv = 1.0 / r;
     L[k * N + k]      = r;
-    for (PetscInt i = k + 1; i < N; ++i) col[i] = L[i * N + k] *= inv;
-    for (PetscInt i = k + 1; i < N; ++i) {
-      const PetscReal lik = col[i];
-      if (lik == 0) continue;
-      PetscReal *Li = &L[i * N];
-      for (PetscInt j = k + 1; j <= i; ++j) Li[j] -= lik * col[j];
+    PetscInt *col     = &nz[start[k]], n = 0;
+    for (PetscInt i = k + 1; i < N; ++i)
+      if ((L[i * N + k] *= inv) != 0) col[n++] = i;
+    start[k + 1] = start[k] + n;
+    for (PetscInt a = 0; a < n; ++a) {
+      const PetscInt  i   = col[a];
+      const PetscReal lik = L[i * N + k];
+      PetscReal      *Li  = &L[i * N];
+      for (PetscInt c = 0; c <= a; ++c) Li[col[c]] -= lik * L[col[c] * N + k];
     }
   }
   for (PetscInt j = 0; j < N; ++j) { // L y = b, by columns
     b[j] /= L[j * N + j];
     if (b[j] == 0) continue;
-    for (PetscInt i = j + 1; i < N; ++i) b[i] -= L[i * N + j] * b[j];
+    for (PetscInt p = start[j]; p < start[j + 1]; ++p) b[nz[p]] -= L[nz[p] * N + j] * b[j];
   }
-  for (PetscInt i = N - 1; i >= 0; --i) { // L^T z = y, by rows of L
-    b[i] /= L[i * N + i];
-    const PetscReal *Li = &L[i * N];
-    for (PetscInt j = 0; j < i; ++j) b[j] -= Li[j] * b[i];
+  for (PetscInt j = N - 1; j >= 0; --j) { // L^T z = y: z_j from the z_i, i > j, of column j's nonzeros
+    for (PetscInt p = start[j + 1] - 1; p >= start[j]; --p) b[j] -= L[nz[p] * N + j] * b[nz[p]];
+    b[j] /= L[j * N + j];
   }
   return true;
 }
@@ -253,8 +261,10 @@ private:
   // The faces containing a, matched between the patch's cells by their vertices' global numbers.
   void MatchFaces()
   {
+    // Sized once and filled by index: the growing push_back was a call per face.
     std::vector<Key> &keys = keys_;
-    keys.clear();
+    keys.resize(n_ * (nb_ - 1));
+    size_t nk = 0;
     for (PetscInt e = 0; e < n_; ++e) {
       const Corner &c = corners_[e];
       for (PetscInt j = 0; j < nb_; ++j) {
@@ -262,7 +272,7 @@ private:
         uint64_t lo = UINT32_MAX, hi = 0; // the vertices other than a and j
         for (PetscInt i = 0; i < nb_; ++i)
           if (i != j && i != c.corner) lo = std::min<uint64_t>(lo, (uint32_t)c.gid[i]), hi = std::max<uint64_t>(hi, (uint32_t)c.gid[i]);
-        keys.push_back({nb_ == 3 ? lo : (lo << 32 | hi), e, j});
+        keys[nk++] = {nb_ == 3 ? lo : (lo << 32 | hi), e, j};
       }
     }
     // Pair the keys through a small open-addressing hash table (a sort costs more at 70 keys in 3D).
@@ -277,23 +287,25 @@ private:
       if (table_[h] < 0) table_[h] = (PetscInt)i;
       else partner_[table_[h]] = (PetscInt)i, partner_[i] = table_[h];
     }
-    sides_.clear();
+    sides_.resize(n);
+    size_t ns = 0;
     fixedSides_.clear();
     for (size_t i = 0; i < n; ++i) {
       const Key &k = keys[i];
       if (partner_[i] >= 0) {
         if (partner_[i] < (PetscInt)i) continue; // listed with its partner
         const Key &o = keys[partner_[i]];
-        sides_.push_back({k.entry, k.face, -1, 1.0});
-        sides_.push_back({o.entry, o.face, -1, -1.0});
+        sides_[ns++] = {k.entry, k.face, -1, 1.0};
+        sides_[ns++] = {o.entry, o.face, -1, -1.0};
         continue;
       }
       const Corner  &c    = corners_[k.entry];
       const PetscInt kind = c.kind[k.face];
       const bool     free = kind == kFaceDirichlet || (kind == kFaceContact && vertexKind_ != kDirichlet);
-      if (free) sides_.push_back({k.entry, k.face, -1, 1.0});
+      if (free) sides_[ns++] = {k.entry, k.face, -1, 1.0};
       else fixedSides_.push_back({k.entry, k.face, kind == kFaceNeumann ? c.neumann[k.face] : 0.0});
     }
+    sides_.resize(ns);
     Renumber();
   }
 
@@ -372,8 +384,9 @@ private:
       for (size_t k = i > 0 ? i - 1 : 0; k < std::min(i + 2, sides_.size()); ++k)
         if (sides_[k].unknown == s.unknown && sides_[k].entry < rows) L_[s.entry * rows + sides_[k].entry] += s.sign * sides_[k].sign / h_[s.unknown];
     }
-    col_.resize(rows);
-    if (!SolveSPD(rows, L_.data(), mu_.data(), col_.data())) return false;
+    start_.resize(rows + 1);
+    nz_.resize(rows * (rows - 1) / 2 + 1);
+    if (!SolveSPD(rows, L_.data(), mu_.data(), start_.data(), nz_.data())) return false;
     for (PetscInt u = 0; u < m; ++u) x_[u] = c_[u];
     for (const Side &s : sides_)
       if (s.entry < rows) x_[s.unknown] -= s.sign * mu_[s.entry];
@@ -392,8 +405,8 @@ private:
   std::vector<char>      contact_;
   bool                   boundaryUnknown_ = false;
   std::vector<Key>       keys_;
-  std::vector<PetscInt>  table_, partner_;
-  std::vector<PetscReal> x_, h_, c_, L_, mu_, col_, fixed_, rhs_, resid_;
+  std::vector<PetscInt>  table_, partner_, start_, nz_;
+  std::vector<PetscReal> x_, h_, c_, L_, mu_, fixed_, rhs_, resid_;
 };
 
 } // namespace
@@ -413,11 +426,13 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   Vec                loc;
   const PetscScalar *ua;
   CellData           cd;
+  const PetscInt    *gidx;
+  PetscCall(ISLocalToGlobalMappingGetIndices(space.ltog, &gidx));
   PetscCall(DMGetLocalVector(space.dm, &loc));
   PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, loc));
   PetscCall(VecGetArrayRead(loc, &ua));
   PetscCall(PetscLogEventBegin(cellEvent, 0, 0, 0, 0));
-  PetscCall(ComputeCellData(space, problem, sys, ua, cd, r.oscillation));
+  PetscCall(ComputeCellData(space, problem, sys, ua, gidx, cd, r.oscillation));
   PetscCall(PetscLogEventEnd(cellEvent, 0, 0, 0, 0));
   PetscCall(VecRestoreArrayRead(loc, &ua));
 
@@ -446,12 +461,10 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscCall(VecRestoreArrayRead(loc, &ua));
   PetscCall(DMRestoreLocalVector(space.dm, &loc));
 
-  const PetscInt *gidx;
   std::vector<PetscInt> ranges;
   PetscMPIInt           rank;
   PetscCallMPI(MPI_Comm_rank(comm, &rank));
   PetscCall(OwnershipRanges(comm, space.numOwned, ranges));
-  PetscCall(ISLocalToGlobalMappingGetIndices(space.ltog, &gidx));
   const auto owned = [&](PetscInt v) { return gidx[v] >= ranges[rank] && gidx[v] < ranges[rank + 1]; };
 
   r.flux.assign(nc * nb, 0.0);
@@ -482,7 +495,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
     out.resize(n * nb);
     for (PetscInt e = 0; e < n; ++e) {
       cells[e] = at[e] / nb;
-      FillCorner(space, cd, gidx, cells[e], at[e] - cells[e] * nb, corners[e]);
+      FillCorner(cd, nb, cells[e], at[e] - cells[e] * nb, corners[e]);
     }
     ok = patch.Solve(space.kindLocal[v], corners.data(), n, out.data());
     for (PetscInt e = 0; e < n && ok; ++e)
@@ -512,7 +525,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscInt nmulti = 0;
   for (PetscInt i = 0; i < space.numOwned; ++i) nmulti += degree[i];
   std::vector<Corner> leafCorners(leafAt.size()), rootCorners(nmulti);
-  for (size_t l = 0; l < leafAt.size(); ++l) FillCorner(space, cd, gidx, leafAt[l] / nb, leafAt[l] % nb, leafCorners[l]);
+  for (size_t l = 0; l < leafAt.size(); ++l) FillCorner(cd, nb, leafAt[l] / nb, leafAt[l] % nb, leafCorners[l]);
   PetscCall(ISLocalToGlobalMappingRestoreIndices(space.ltog, &gidx));
   MPI_Datatype cornerType, fluxType;
   PetscCallMPI(MPI_Type_contiguous((int)sizeof(Corner), MPI_BYTE, &cornerType));

@@ -108,25 +108,35 @@ PetscReal ContactTerm(const Space &space, const Problem &problem, const System &
 }
 
 // sigma = sum_k Phi_k (x - X_k) / (d |T|) = s0 + c (x - x_T) with s0 = sigma(x_T), c = sum_k Phi_k / (d |T|)
-// (= -Pi_0 f / d), so for the constant w = kappa grad v
+// (= -Pi_0 f / d), so for a constant w (kappa grad v, or kappa grad_h u_h)
 //   ||w - sigma||_T^2 = |T| |w - s0|^2 + c^2 int_T |x - x_T|^2,  int_T |x - x_T|^2 = |T| / ((d+1)(d+2)) sum_k |X_k - x_T|^2
-// exactly (the cross term vanishes: x - x_T has mean zero on T).
-PetscReal FluxTerm(PetscInt dim, const PetscReal *X, const CellGeometry &g, const PetscReal *phi, const PetscReal *w, PetscReal kappa)
-{
-  PetscReal s0[3] = {0, 0, 0}, c = 0, m2 = 0, d2 = 0;
-  for (PetscInt k = 0; k <= dim; ++k) {
-    c += phi[k];
-    for (PetscInt d = 0; d < dim; ++d) {
-      const PetscReal r = g.centroid[d] - X[k * dim + d];
-      s0[d] += phi[k] * r;
-      m2 += r * r;
+// exactly (the cross term vanishes: x - x_T has mean zero on T). The w-free parts are computed once a cell.
+struct CellFlux {
+  PetscReal s0[3] = {0, 0, 0}, spread = 0, volume, kappa; // spread = c^2 int_T |x - x_T|^2
+  CellFlux(PetscInt dim, const PetscReal *X, const CellGeometry &g, const PetscReal *phi, PetscReal kappa_) : volume(g.volume), kappa(kappa_)
+  {
+    PetscReal c = 0, m2 = 0;
+    for (PetscInt k = 0; k <= dim; ++k) {
+      c += phi[k];
+      for (PetscInt d = 0; d < dim; ++d) {
+        const PetscReal r = g.centroid[d] - X[k * dim + d];
+        s0[d] += phi[k] * r;
+        m2 += r * r;
+      }
     }
+    const PetscReal scale = 1 / (dim * g.volume);
+    for (PetscInt d = 0; d < dim; ++d) s0[d] *= scale;
+    c *= scale;
+    spread = c * c * g.volume / ((dim + 1) * (dim + 2)) * m2;
   }
-  const PetscReal scale = 1 / (dim * g.volume);
-  for (PetscInt d = 0; d < dim; ++d) d2 += (w[d] - scale * s0[d]) * (w[d] - scale * s0[d]);
-  c *= scale;
-  return (g.volume * d2 + c * c * g.volume / ((dim + 1) * (dim + 2)) * m2) / kappa;
-}
+  // ||kappa^{-1/2}(w - sigma)||_T^2
+  PetscReal Term(PetscInt dim, const PetscReal *w) const
+  {
+    PetscReal d2 = 0;
+    for (PetscInt d = 0; d < dim; ++d) d2 += (w[d] - s0[d]) * (w[d] - s0[d]);
+    return (volume * d2 + spread) / kappa;
+  }
+};
 
 // The f part of the oscillation per cell, for a reconstruction that did not read it.
 PetscErrorCode CellOscillation(const Space &space, const Problem &problem, const System &sys, std::vector<PetscReal> &osc, std::string &error)
@@ -176,9 +186,10 @@ void CellTerms(const Space &space, const System &sys, const Reconstruction &r, c
       for (PetscInt d = 0; d < dim; ++d) dot += (gu[d] - gv[d]) * g.gradLambda[k][d], l2 += g.gradLambda[k][d] * g.gradLambda[k][d];
       vs[0] += kappa * g.volume * dot, vs[1] += kappa * g.volume * l2;
     }
-    const PetscReal f2 = FluxTerm(dim, X, g, &r.flux[c * nb], w, kappa), o2 = r.oscillation[c] * r.oscillation[c];
+    const CellFlux  sigma(dim, X, g, &r.flux[c * nb], kappa);
+    const PetscReal f2 = sigma.Term(dim, w), o2 = r.oscillation[c] * r.oscillation[c];
     cellEta2[c] += f2 + n2 + o2;
-    const PetscReal fh2 = FluxTerm(dim, X, g, &r.flux[c * nb], wh, kappa);
+    const PetscReal fh2 = sigma.Term(dim, wh);
     const PetscReal fo = std::sqrt(f2) + r.oscillation[c], fho = std::sqrt(fh2) + r.oscillation[c];
     sums[kF2] += f2, sums[kN2] += n2, sums[kOsc2] += o2, sums[kFOsc2] += fo * fo, sums[kFhOsc2] += fho * fho, sums[kFh2] += fh2;
   }

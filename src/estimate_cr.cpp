@@ -131,10 +131,20 @@ PetscErrorCode ImproveCompanion(const Space &space, const System &sys, std::vect
 {
   MPI_Comm               comm = PetscObjectComm((PetscObject)space.dm);
   const PetscInt         nv   = (PetscInt)r.companion.size();
-  std::vector<PetscReal> res(nv), diag(nv), z(nv), p(nv), q;
+  std::vector<PetscReal> res, diag, z, p, q;
   PetscFunctionBeginUser;
   improved = false;
   PetscCall(SumOverRanks(space, 2, vertexSums));
+  { // the decision first, without the iteration's vectors (on most meshes it is no): r.z as the loop below computes it
+    PetscReal local = 0, rz0;
+    for (PetscInt v = 0; v < nv; ++v) {
+      const PetscReal rv = r.movable[v] ? vertexSums[2 * v] : 0, dv = vertexSums[2 * v + 1];
+      if (r.owned[v]) local += rv * (dv > 0 ? rv / dv : 0);
+    }
+    PetscCallMPI(MPI_Allreduce(&local, &rz0, 1, MPIU_REAL, MPI_SUM, comm));
+    if (!(rz0 > 0.1 * n2)) PetscFunctionReturn(0);
+  }
+  res.resize(nv), diag.resize(nv), z.resize(nv), p.resize(nv);
   for (PetscInt v = 0; v < nv; ++v) res[v] = r.movable[v] ? vertexSums[2 * v] : 0, diag[v] = vertexSums[2 * v + 1];
   const auto Dot = [&](const std::vector<PetscReal> &a, const std::vector<PetscReal> &b, PetscReal &sum) {
     PetscReal local = 0;
@@ -148,7 +158,6 @@ PetscErrorCode ImproveCompanion(const Space &space, const System &sys, std::vect
   Precondition();
   PetscReal rz;
   PetscCallMPI(Dot(res, z, rz));
-  if (!(rz > 0.1 * n2)) PetscFunctionReturn(0);
   p = z;
   const std::vector<PetscReal> sg = ScaledGradients(space, sys);
   PetscInt                     steps = 0;

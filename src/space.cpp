@@ -28,32 +28,38 @@ bool ComputeCellGeometry(PetscInt dim, const PetscReal *X, CellGeometry &g)
   PetscReal J[3][3], inv[3][3], det;
   for (PetscInt r = 0; r < dim; ++r)
     for (PetscInt k = 0; k < dim; ++k) J[r][k] = X[(k + 1) * dim + r] - X[r];
+  // One division a cell, not one an entry: the estimate and the transfers call this for every cell, and
+  // the divisions were its largest cost.
   if (dim == 2) {
-    det       = J[0][0] * J[1][1] - J[0][1] * J[1][0];
-    inv[0][0] = J[1][1] / det, inv[0][1] = -J[0][1] / det;
-    inv[1][0] = -J[1][0] / det, inv[1][1] = J[0][0] / det;
+    det                    = J[0][0] * J[1][1] - J[0][1] * J[1][0];
+    const PetscReal invDet = 1 / det;
+    inv[0][0] = J[1][1] * invDet, inv[0][1] = -J[0][1] * invDet;
+    inv[1][0] = -J[1][0] * invDet, inv[1][1] = J[0][0] * invDet;
   } else {
     det = J[0][0] * (J[1][1] * J[2][2] - J[1][2] * J[2][1]) - J[0][1] * (J[1][0] * J[2][2] - J[1][2] * J[2][0]) + J[0][2] * (J[1][0] * J[2][1] - J[1][1] * J[2][0]);
+    const PetscReal invDet = 1 / det;
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j) {
         // cofactor of J[j][i], divided by det
         int r0 = (j + 1) % 3, r1 = (j + 2) % 3, c0 = (i + 1) % 3, c1 = (i + 2) % 3;
-        inv[i][j] = (J[r0][c0] * J[r1][c1] - J[r0][c1] * J[r1][c0]) / det;
+        inv[i][j] = (J[r0][c0] * J[r1][c1] - J[r0][c1] * J[r1][c0]) * invDet;
       }
   }
   // Degenerate: |det| tiny relative to the cell's size (round-off leaves collinear vertices a det ~ 1e-17).
-  PetscReal h = 0;
+  PetscReal h2 = 0;
   for (PetscInt k = 0; k < dim; ++k) {
     PetscReal len2 = 0;
     for (PetscInt r = 0; r < dim; ++r) len2 += J[r][k] * J[r][k];
-    h = std::max(h, std::sqrt(len2));
+    h2 = std::max(h2, len2);
   }
+  const PetscReal h = std::sqrt(h2);
   if (!std::isfinite(det) || !(std::fabs(det) > 1e-12 * (dim == 2 ? h * h : h * h * h))) return false;
   g.volume = std::fabs(det) / (dim == 2 ? 2.0 : 6.0);
   for (PetscInt d = 0; d < dim; ++d) {
     g.gradLambda[0][d] = 0;
     g.centroid[d]      = 0;
-    for (PetscInt k = 0; k <= dim; ++k) g.centroid[d] += X[k * dim + d] / (dim + 1);
+    for (PetscInt k = 0; k <= dim; ++k) g.centroid[d] += X[k * dim + d];
+    g.centroid[d] *= 1.0 / (dim + 1);
   }
   for (PetscInt k = 1; k <= dim; ++k)
     for (PetscInt d = 0; d < dim; ++d) {
