@@ -104,7 +104,7 @@ PetscErrorCode RefineMarked(DM coarse, const std::vector<char> &marked, LocalRef
   PetscCall(DMGetDimension(coarse, &dim));
   if (how != LocalRefinement::SBR) PetscCall(RefineMarkedBisection(coarse, marked, fine, parent, how == LocalRefinement::BisectionAll));
   else if (dim == 2) PetscCall(RefineMarkedSBR(coarse, marked, fine, parent));
-  else SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)coarse), "option -adapt_refinement: sbr refines triangles only; use bisection for tetrahedra");
+  else SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)coarse), "option -adapt_refinement: sbr refines triangles only; use bisection or bisection_all for tetrahedra");
   PetscFunctionReturn(0);
 }
 

@@ -100,7 +100,14 @@ static PetscErrorCode Run(MPI_Comm comm)
   MeshLevels levels;
   // The scene is checked against the coarse mesh (dimension, boundary parts) before the refinement.
   // The sizes are checked against the coarse mesh before it is built (box) or distributed (file).
-  PetscCall(MeshCreate(comm, s.mesh, &mesh, meshInfo, nested ? &levels : nullptr, s.nested.levels, [&](DM coarse) { return ProblemCheckMesh(coarse, s.problem); },
+  PetscCall(MeshCreate(comm, s.mesh, &mesh, meshInfo, nested ? &levels : nullptr, s.nested.levels, [&](DM coarse) {
+                         PetscInt cdim;
+                         PetscFunctionBeginUser;
+                         PetscCall(DMGetDimension(coarse, &cdim));
+                         if (adaptive && s.adapt.refinement == LocalRefinement::SBR && cdim != 2) SIGNORINI_INPUT_ERROR(comm, "option -adapt_refinement: sbr refines triangles only; use bisection or bisection_all for tetrahedra");
+                         PetscCall(ProblemCheckMesh(coarse, s.problem));
+                         PetscFunctionReturn(0);
+                       },
                        [&](const MeshCounts &coarse) { return CheckSizes(comm, s.mesh, coarse, s.element, s.study); }));
   PetscInt dim;
   PetscCall(DMGetDimension(mesh, &dim));

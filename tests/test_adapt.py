@@ -105,4 +105,9 @@ for args, message in [(["-adapt_theta", "0"], "-adapt_theta"),
     rc, out, err, _ = run(base + args, check=False)
     lines = [l for l in (out + err).splitlines() if l.startswith("signorini: error:")]
     c.check(rc == 1 and len(lines) == 1 and message in lines[0], "%s: one error line (%s)" % (" ".join(args), lines[0] if lines else "none"))
+# sbr refines triangles only: refused on a tetrahedral mesh before anything is solved (no summary line).
+rc, out, err, _ = run(scene("manufactured-3d") + ["-adapt_steps", "1", "-adapt_refinement", "sbr"], check=False)
+lines = [l for l in (out + err).splitlines() if l.startswith("signorini: error:")]
+c.check(rc == 1 and len(lines) == 1 and "sbr refines triangles only" in lines[0] and "energy" not in out,
+        "-adapt_refinement sbr in 3D: one error line before the solve (%s)" % (lines[0] if lines else "none"))
 c.done()
