@@ -171,6 +171,17 @@ def plot(results, path, title):
     save_png(fig, path)
 
 
+def print_target(results):
+    """Issue 18's parallel target: on 2 (or more) ranks the solve's efficiency is at least 90 % of the
+    memory-bandwidth ceiling measured right before it."""
+    print("\ntarget: solve efficiency >= 90 % of the ceiling:")
+    for kind, rows in results.items():
+        for r in rows:
+            if r["ranks"] > 1 and r["status"] == "ok" and "eff_ceiling" in r and "eff_solve" in r:
+                share = r["eff_solve"] / r["eff_ceiling"]
+                print("  %s, %d ranks: %.1f %% of a %.0f %% ceiling = %.0f %% %s 90 %%" % (kind, r["ranks"], 100 * r["eff_solve"], 100 * r["eff_ceiling"], 100 * share, ">=" if share >= 0.9 else "<"))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--ranks", help="comma-separated rank counts (default 1, 2, 4, ... up to --max-ranks)")
@@ -210,6 +221,7 @@ def main():
     if not args.no_stream:
         print("\nceiling: STREAM bandwidth of p ranks / (p x that of one rank), the efficiency a solve that is limited by")
         print("memory bandwidth (CG + BoomerAMG) can reach on this machine; efficiencies above it come from work that is not.")
+        print_target(results)
     rows = [r for rs in results.values() for r in rs]
     write_csv(rows, os.path.join(args.out, "scaling.csv"))
     plot(results, os.path.join(args.out, "scaling.png"), title)

@@ -4,7 +4,8 @@
   ratios and the largest peak memory, recomputed here from the three JSON files;
 - bench.csv and time-per-dof.png are written, no *.tmp file is left; --repeat 0 is a clear usage error;
 - --estimate: each estimate / solve ratio is that of its run's Estimate and Solve stages, and each adaptive
-  step's overhead / solve is that of the run's "adapt" row (estimate + mark + refine + redistribute + transfer)."""
+  step's overhead / solve is that of the run's "adapt" row (estimate + mark + refine + redistribute + transfer);
+- --error --quick: each error / solve ratio is that of its run's Error and Solve stages."""
 import csv
 import json
 import os
@@ -83,6 +84,23 @@ with tempfile.TemporaryDirectory() as tmp:
     c.check(p.returncode == 0 and "estimate / solve" in p.stdout and "overhead / solve" in p.stdout, "run/bench --estimate exit status %d %s" % (p.returncode, p.stderr[-400:]))
     if p.returncode == 0:
         check_estimate(tmp)
+
+def check_error_cost(tmp, stdout):
+    """--error: each printed ratio is the kept summary's Error stage over its Solve stage."""
+    lines = [l for l in stdout.splitlines() if "error/solve" in l]
+    c.check(len(lines) == 4, "--error: %d rows, expected 4" % len(lines))
+    for l in lines:
+        scene, element = l.split()[:2]
+        t = json.load(open(os.path.join(tmp, "error-%s-%s-np1.json" % (scene, element))))["time"]
+        ratio = float(l.split("error/solve")[1].split()[0])
+        c.check(abs(ratio - t["error"] / t["solve"]) <= 0.01 * ratio + 0.005, "--error %s %s: printed %g, summary %g" % (scene, element, ratio, t["error"] / t["solve"]))
+
+
+with tempfile.TemporaryDirectory() as tmp:
+    p = bench(tmp, "--error", "--quick")
+    c.check(p.returncode == 0, "run/bench --error exit status %d %s" % (p.returncode, p.stderr[-400:]))
+    if p.returncode == 0:
+        check_error_cost(tmp, p.stdout)
 
 with tempfile.TemporaryDirectory() as tmp:
     p = bench(tmp, "--repeat", "0")
