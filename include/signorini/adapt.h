@@ -17,6 +17,7 @@
 // step of the adaptive run, not the reference.
 #pragma once
 
+#include "signorini/hierarchy.h"
 #include "signorini/localrefine.h"
 #include "signorini/strategy.h"
 #include "signorini/transfer.h"
@@ -94,6 +95,17 @@ private:
   MeshSolution      prev_;    // the solution of mesh_ until it is carried
   std::vector<char> marked_;  // the cells of mesh_ to refine
   CellValues        carried_; // prev_ on the cells of the new mesh
+  // -vi_pc_type mg: the multigrid over the adapted meshes (hierarchy.h), as nested iteration builds it
+  // over the uniform levels: the P1 transfers from step to step (recorded on the new cells before a
+  // redistribution, assembled on the new space), and for CR the transfer from P1 to CR on the mesh of the
+  // step under way on top. Levels too close in size to the next are skipped (MultigridLevel).
+  bool                  multigrid_ = false;
+  Hierarchy             hierarchy_;
+  std::vector<PetscInt> levelDofs_; // global P1 DOFs of the kept levels, coarse to fine
+  Space                 p1_;        // CR: the P1 space of mesh_, for the next step's transfer
+  TransferRecord        record_;    // the transfer from the P1 space of mesh_'s parent mesh to mesh_
+  PetscErrorCode        MultigridCarry(const Space &space);
+  PetscErrorCode        MultigridLevel(Mat P, PetscInt dofs);
 };
 
 } // namespace signorini
