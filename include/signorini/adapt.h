@@ -45,7 +45,8 @@ struct AdaptOptions {
 PetscErrorCode AdaptOptionsFromCommandLine(MPI_Comm comm, AdaptOptions &o);
 
 // One mesh of the run. The times are max over ranks, in seconds; the overhead (estimate to transfer) is
-// what it took to go from this mesh's solution to the next mesh and its initial guess.
+// what it took to go from this mesh's solution to the next mesh and its initial guess. The solve includes
+// the building of the multigrid's transfers to this mesh (-vi_pc_type mg), its preconditioner's data.
 struct AdaptRow {
   PetscInt  cells = 0, dofs = 0, newtonIts = 0, kspIts = 0, marked = 0;
   PetscReal eta = 0, error = -1; // error: against the exact solution, energy norm (-1: not known)
@@ -109,7 +110,9 @@ private:
   std::vector<PetscInt> levelDofs_; // global P1 DOFs of the kept levels, coarse to fine
   Space                 p1_;        // CR: the P1 space of mesh_, for the next step's transfer
   TransferRecord        record_;    // the transfer from the P1 space of mesh_'s parent mesh to mesh_
+  double                multigridSeconds_ = 0; // its set-up for the next solve, counted as that solve's time
   PetscErrorCode        MultigridCarry(const Space &space);
+  PetscErrorCode        MultigridTime(const std::function<PetscErrorCode()> &f);
   PetscErrorCode        MultigridLevel(Mat P, PetscInt dofs);
 };
 
