@@ -4,6 +4,7 @@
 #include "signorini/localrefine.h"
 #include "signorini/mark.h"
 #include "signorini/options.h"
+#include "signorini/stages.h"
 
 #include <algorithm>
 #include <sstream>
@@ -67,12 +68,15 @@ AdaptiveRefinement::AdaptiveRefinement(DM mesh, const Problem &problem, const Pi
   mesh_(mesh), problem_(problem), options_(o), adapt_(a), errorDegree_(errorDegree), indicators_(indicators ? indicators : Indicators(PipelineIndicators))
 {
   (void)PetscObjectReference((PetscObject)mesh_);
+  multigrid_ = o.solve.amgReuse.innerType == PCMG && problem.HasContact();
 }
 
 AdaptiveRefinement::~AdaptiveRefinement()
 {
   (void)prev_.Destroy(); // left over only when the run ended with an error
   for (MeshSolution &k : kept_) (void)k.Destroy();
+  (void)hierarchy_.Destroy();
+  (void)SpaceDestroy(p1_);
   (void)DMDestroy(&mesh_);
 }
 
@@ -84,6 +88,7 @@ PetscErrorCode AdaptiveRefinement::Next(Step &step, bool &more)
   if (step_ < 0) PetscCall(PetscTime(&start_));
   if (++step_ > 0) PetscCall(Refine());
   step = Step{mesh_, options_};
+  if (multigrid_) step.options.solve.amgReuse.hierarchy = &hierarchy_; // complete for this step once Carry ran
   PetscFunctionReturn(0);
 }
 
@@ -107,6 +112,14 @@ PetscErrorCode AdaptiveRefinement::Refine()
   }
   PetscCall(EvaluateOnCells(prev_.space, prev_.u, lowerH, fine, parent, carried_));
   PetscCall(VecDestroy(&lowerH));
+  PetscCall(SecondsSince(comm, t0, &row.transferSeconds));
+  if (multigrid_) {
+    PetscCall(MultigridTime([&]() -> PetscErrorCode {
+      PetscCall(RecordP1Transfer(prev_.space.element == Element::P1 ? prev_.space : p1_, fine, parent, record_));
+      return SpaceDestroy(p1_);
+    }));
+  }
+  PetscCall(PetscTime(&t0));
   if (adapt_.referenceSteps > 0) { // kept for the errors against the reference
     kept_.push_back(std::move(prev_));
     parents_.resize(step_);
@@ -115,7 +128,9 @@ PetscErrorCode AdaptiveRefinement::Refine()
   prev_ = MeshSolution();
   PetscCall(DMDestroy(&mesh_));
   mesh_ = fine;
-  PetscCall(SecondsSince(comm, t0, &row.transferSeconds));
+  double seconds;
+  PetscCall(SecondsSince(comm, t0, &seconds));
+  row.transferSeconds += seconds;
 
   // Refinement leaves every new cell on its parent's rank, so the ranks where the error is refine most.
   PetscInt  cStart, cEnd, n, nmax, ntotal;
@@ -132,6 +147,7 @@ PetscErrorCode AdaptiveRefinement::Refine()
     PetscCall(RedistributeMesh(mesh_, &dist, &migration));
     if (dist) {
       PetscCall(MigrateCellValues(mesh_, migration, dist, carried_));
+      if (multigrid_) PetscCall(MigrateCellValues(mesh_, migration, dist, record_.cells));
       PetscCall(PetscSFDestroy(&migration));
       PetscCall(DMDestroy(&mesh_));
       mesh_ = dist;
@@ -148,6 +164,7 @@ PetscErrorCode AdaptiveRefinement::Carry(MeshSolution &cur, bool &carried)
   Vec            lowerh = nullptr;
   double         seconds;
   PetscFunctionBeginUser;
+  if (multigrid_) PetscCall(MultigridTime([&] { return MultigridCarry(cur.space); }));
   carried = step_ > 0;
   if (!carried) PetscFunctionReturn(0);
   PetscCall(PetscTime(&t0));
@@ -179,7 +196,8 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
   row.newtonIts    = m.result.newtonIts;
   row.kspIts       = m.result.kspIts;
   row.setupSeconds = m.setupSeconds;
-  row.solveSeconds = m.result.solveSeconds;
+  row.solveSeconds = m.result.solveSeconds + multigridSeconds_;
+  multigridSeconds_ = 0;
   if (problem_.HasExact()) {
     ErrorNorms e;
     PetscCall(PetscTime(&t0));
@@ -220,12 +238,91 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
   for (MeshSolution &k : kept_) PetscCall(k.Destroy());
   kept_.clear();
   parents_.clear();
+  PetscCall(hierarchy_.Destroy());
+  PetscCall(SpaceDestroy(p1_));
+  levelDofs_.clear();
   n    = finest.space.NumCells();
   comm = PetscObjectComm((PetscObject)finest.u); // not m's, which may be gone
   PetscMPIInt size;
   PetscCallMPI(MPI_Comm_size(comm, &size));
   cellsPerRank.assign(size, 0);
   PetscCallMPI(MPI_Allgather(&n, 1, MPIU_INT, cellsPerRank.data(), 1, MPIU_INT, comm));
+  PetscFunctionReturn(0);
+}
+
+// The multigrid's transfers up to the space of the step under way (before its solve): the P1 transfer
+// from the step before, assembled from its record, and for CR the P1 space of this step's mesh, kept for
+// the next step's record, and the transfer from it to CR, which replaces the one of the step before (as
+// nested iteration does, nested.h: P1 is a subspace of CR, and the Galerkin operators of the P1 levels
+// stay as sparse as P1 stiffness matrices).
+PetscErrorCode AdaptiveRefinement::MultigridCarry(const Space &space)
+{
+  const Space *p1 = &space;
+  Mat          P;
+  PetscFunctionBeginUser;
+  if (space.element == Element::CR) {
+    PetscCall(SpaceCreate(mesh_, Element::P1, problem_, p1_));
+    PetscCall(SpaceReleaseMesh(p1_));
+    p1 = &p1_;
+    if (!hierarchy_.P.empty()) { // the transfer from P1 to CR of the step before
+      PetscCall(MatDestroy(&hierarchy_.P.back()));
+      hierarchy_.P.pop_back();
+    }
+  }
+  if (step_ > 0) {
+    PetscCall(AssembleP1Transfer(record_, *p1, &P));
+    record_ = TransferRecord();
+    PetscCall(MultigridLevel(P, p1->numGlobal));
+  } else levelDofs_.assign(1, p1->numGlobal);
+  if (space.element == Element::CR) {
+    PetscCall(P1ToCRMatrix(*p1, space, &P));
+    hierarchy_.P.push_back(P);
+  }
+  PetscFunctionReturn(0);
+}
+
+// Runs f, a part of the multigrid's set-up, in the Solve stage, and adds its wall time (max over ranks) to
+// the next solve's: the transfers are the preconditioner's data, as BoomerAMG's set-up is, and nested
+// iteration counts their assembly in the solve too.
+PetscErrorCode AdaptiveRefinement::MultigridTime(const std::function<PetscErrorCode()> &f)
+{
+  PetscLogDouble t0;
+  double         seconds;
+  PetscFunctionBeginUser;
+  PetscCall(PetscTime(&t0));
+  PetscCall(StagePush(Stage::Solve));
+  PetscCall(f());
+  PetscCall(StagePop(Stage::Solve));
+  PetscCall(SecondsSince(PetscObjectComm((PetscObject)mesh_), t0, &seconds));
+  multigridSeconds_ += seconds;
+  PetscFunctionReturn(0);
+}
+
+// Adds the P1 level of `dofs` DOFs above the kept ones, P the transfer to it from the level of the step
+// before. An adaptive step refines only part of the mesh, so the levels grow slowly (about 1.7 times the
+// DOFs per step on stiff-below-h2) and a V-cycle over all of them would cost several times the finest
+// level's smoothing. The top kept level is dropped when it has more than half the DOFs of the new one and
+// the level below it at least a quarter (the transfers around it are composed, exactly: the P1 spaces are
+// nested); the level below then becomes the next to the new one. So the kept levels grow by factors of
+// about 2 to 4 (only the top pair may be closer), and a V-cycle costs about twice the finest level's
+// smoothing. Without the lower bound every new level would replace the one below it, leaving the
+// coarsest level right under the finest (CG iterations per Newton step on stiff-below-h2 P1 rose from 4
+// to 38 over 12 steps).
+PetscErrorCode AdaptiveRefinement::MultigridLevel(Mat P, PetscInt dofs)
+{
+  PetscFunctionBeginUser;
+  const size_t n = levelDofs_.size();
+  if (n >= 2 && 2 * levelDofs_[n - 1] > dofs && 4 * levelDofs_[n - 2] >= dofs) {
+    Mat C;
+    PetscCall(MatMatMult(P, hierarchy_.P.back(), MAT_INITIAL_MATRIX, PETSC_DEFAULT, &C));
+    PetscCall(MatDestroy(&P));
+    PetscCall(MatDestroy(&hierarchy_.P.back()));
+    hierarchy_.P.back() = C;
+    levelDofs_.back()   = dofs;
+  } else {
+    hierarchy_.P.push_back(P);
+    levelDofs_.push_back(dofs);
+  }
   PetscFunctionReturn(0);
 }
 

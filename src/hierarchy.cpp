@@ -1,4 +1,5 @@
 #include "signorini/hierarchy.h"
+#include "signorini/mesh.h"
 
 #include <cmath>
 
@@ -128,6 +129,91 @@ PetscErrorCode P1ToCRMatrix(const Space &p1, const Space &cr, Mat *Q)
   PetscCall(ISLocalToGlobalMappingRestoreIndices(cr.ltog, &gf));
   PetscCall(MatAssemblyBegin(*Q, MAT_FINAL_ASSEMBLY));
   PetscCall(MatAssemblyEnd(*Q, MAT_FINAL_ASSEMBLY));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode RecordP1Transfer(const Space &coarse, DM fine, const std::vector<PetscInt> &parent, TransferRecord &r)
+{
+  PetscInt           cStart, cEnd;
+  Vec                coords;
+  DM                 cdm;
+  PetscSection       csec;
+  const PetscScalar *xa;
+  const PetscInt    *gc;
+  PetscFunctionBeginUser;
+  PetscCheck(coarse.element == Element::P1, PETSC_COMM_SELF, PETSC_ERR_ARG_INCOMP, "the recorded transfer is between P1 spaces");
+  const PetscInt dim = coarse.dim, nb = dim + 1, n = nb * nb;
+  PetscCall(DMPlexGetHeightStratum(fine, 0, &cStart, &cEnd));
+  PetscCheck((PetscInt)parent.size() == cEnd - cStart, PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "parent map has %d entries for %d fine cells", (int)parent.size(), (int)(cEnd - cStart));
+  PetscCall(DMGetCoordinatesLocal(fine, &coords));
+  PetscCall(DMGetCoordinateDM(fine, &cdm));
+  PetscCall(DMGetLocalSection(cdm, &csec));
+  PetscCall(VecGetArrayRead(coords, &xa));
+  PetscCall(ISLocalToGlobalMappingGetIndices(coarse.ltog, &gc));
+  r.cells.nb = n;
+  r.cells.data.assign((cEnd - cStart) * 2 * n, 0);
+  PetscReal lambda[4];
+  for (PetscInt c = cStart; c < cEnd; ++c) {
+    const PetscInt      pc = parent[c - cStart];
+    const Space::Coords XH = coarse.X(pc);
+    CellGeometry        g;
+    PetscInt            verts[4];
+    PetscReal          *rec = &r.cells.data[(c - cStart) * 2 * n];
+    ComputeCellGeometry(dim, XH, g);
+    PetscCall(CellVertices(fine, c, dim, verts));
+    for (PetscInt k = 0; k < nb; ++k) {
+      PetscInt  off;
+      PetscReal x[3];
+      PetscCall(PetscSectionGetOffset(csec, verts[k], &off));
+      for (PetscInt d = 0; d < dim; ++d) x[d] = PetscRealPart(xa[off + d]);
+      Barycentric(dim, g, XH, x, lambda);
+      for (PetscInt j = 0; j < nb; ++j) {
+        const PetscInt J    = coarse.Dofs(pc)[j];
+        const bool     keep = coarse.kindLocal[J] != kDirichlet && std::fabs(lambda[j]) >= 1e-12;
+        rec[k * nb + j]     = keep ? gc[J] : -1;
+        rec[n + k * nb + j] = keep ? lambda[j] : 0;
+      }
+    }
+  }
+  PetscCall(ISLocalToGlobalMappingRestoreIndices(coarse.ltog, &gc));
+  PetscCall(VecRestoreArrayRead(coords, &xa));
+  r.coarseOwned  = coarse.numOwned;
+  r.coarseGlobal = coarse.numGlobal;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode AssembleP1Transfer(const TransferRecord &r, const Space &fine, Mat *P)
+{
+  const PetscInt *gf;
+  PetscInt        rStart, rEnd;
+  PetscFunctionBeginUser;
+  PetscCheck(fine.element == Element::P1, PETSC_COMM_SELF, PETSC_ERR_ARG_INCOMP, "the recorded transfer is between P1 spaces");
+  const PetscInt nb = fine.Nb(), n = nb * nb;
+  PetscCheck(r.cells.nb == n && (PetscInt)r.cells.data.size() == 2 * n * fine.NumCells(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "transfer recorded for %d values on %d cells", (int)r.cells.data.size(), (int)fine.NumCells());
+  // Every coarse column may lie on any rank once the fine mesh has been redistributed.
+  PetscCall(MatCreateAIJ(PetscObjectComm((PetscObject)fine.dm), fine.numOwned, r.coarseOwned, fine.numGlobal, r.coarseGlobal, nb, NULL, nb, NULL, P));
+  PetscCall(MatSetOption(*P, MAT_NO_OFF_PROC_ENTRIES, PETSC_TRUE));
+  PetscCall(MatGetOwnershipRange(*P, &rStart, &rEnd));
+  PetscCall(ISLocalToGlobalMappingGetIndices(fine.ltog, &gf));
+  // Every cell holding a fine vertex gives it the same row (the coarse function is continuous): each owned
+  // row is set once, from the first local cell that holds it.
+  std::vector<char> done(fine.numLocal, 0);
+  for (PetscInt c = 0; c < fine.NumCells(); ++c) {
+    const PetscReal *rec = &r.cells.data[c * 2 * n];
+    for (PetscInt k = 0; k < nb; ++k) {
+      const PetscInt dof = fine.Dofs(c)[k];
+      if (done[dof] || fine.kindLocal[dof] == kDirichlet || gf[dof] < rStart || gf[dof] >= rEnd) continue;
+      done[dof] = 1;
+      PetscInt    cols[4], m = 0;
+      PetscScalar vals[4];
+      for (PetscInt j = 0; j < nb; ++j)
+        if (rec[k * nb + j] >= 0) cols[m] = (PetscInt)rec[k * nb + j], vals[m++] = rec[n + k * nb + j];
+      PetscCall(MatSetValues(*P, 1, &gf[dof], m, cols, vals, INSERT_VALUES));
+    }
+  }
+  PetscCall(ISLocalToGlobalMappingRestoreIndices(fine.ltog, &gf));
+  PetscCall(MatAssemblyBegin(*P, MAT_FINAL_ASSEMBLY));
+  PetscCall(MatAssemblyEnd(*P, MAT_FINAL_ASSEMBLY));
   PetscFunctionReturn(0);
 }
 

@@ -12,9 +12,16 @@
 //     the mean of the P1 function's values at the face's vertices, computed here from the cell tables;
 //   - the Galerkin coarse operators of the multigrid preconditioner (PCMG's MatPtAP, on each coarser
 //     level) equal R A P computed directly, column by column, with matrix-vector products only, from
-//     the inactive-set block and the truncated transfers.
+//     the inactive-set block and the truncated transfers;
+//   - over three adaptive steps (bisection of the cells near one corner, the new mesh redistributed on
+//     more than one rank), the P1 transfers recorded on the new cells and assembled on the new space
+//     (adapt.h): P uH equals the transfer of transfer.h (EvaluateOnCells, moved with the cells,
+//     ApplyCellValues) off Gamma_D, P reproduces a linear function that vanishes on Gamma_D exactly, and
+//     the Galerkin coarse operators of the multigrid over those levels (for CR with P1 to CR on top)
+//     equal R A P.
 #include "signorini/assembly.h"
 #include "signorini/hierarchy.h"
+#include "signorini/localrefine.h"
 #include "signorini/mesh.h"
 #include "signorini/stages.h"
 #include "signorini/transfer.h"
@@ -142,6 +149,8 @@ static PetscErrorCode GalerkinError(Mat A, Mat P, Mat Ac, PetscReal *err)
   for (Vec *v : {&e, &Pe, &APe, &RAPe, &Ace}) PetscCall(VecDestroy(v));
   PetscFunctionReturn(0);
 }
+
+static PetscErrorCode CheckGalerkin(unit::Checker &ck, const std::string &tag, const Space &fine, const Problem &problem, const Hierarchy &mg, IS inactive, PetscInt expected);
 
 static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
 {
@@ -305,18 +314,35 @@ static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
   }
 
   // 3. The Galerkin coarse operators of the preconditioner on every coarser level equal R A P.
+  PetscCall(CheckGalerkin(ck, tag, spaces[L - 1], problem, mg, inactive, cr ? L + 1 : L));
+  PetscCall(MatDestroy(&Pt));
+  PetscCall(ISDestroy(&kept));
+  PetscCall(ISDestroy(&inactive));
+  PetscCall(h.Destroy());
+  PetscCall(mg.Destroy());
+  for (Space &s : p1s) PetscCall(SpaceDestroy(s));
+  for (Space &s : spaces) PetscCall(SpaceDestroy(s));
+  PetscCall(MeshLevelsDestroy(levels));
+  PetscCall(DMDestroy(&fineDM));
+  PetscFunctionReturn(0);
+}
+
+// The multigrid preconditioner over the hierarchy mg for the inactive-set block of the stiffness matrix
+// on `fine`: `expected` levels, and on each coarser one the Galerkin operator R A P.
+static PetscErrorCode CheckGalerkin(unit::Checker &ck, const std::string &tag, const Space &fine, const Problem &problem, const Hierarchy &mg, IS inactive, PetscInt expected)
+{
+  PetscFunctionBeginUser;
   {
     Mat A, Aii;
     PC  pc;
     System sys;
-    PetscCall(AssembleSystem(spaces[L - 1], problem, AssemblyOptions(), sys));
+    PetscCall(AssembleSystem(fine, problem, AssemblyOptions(), sys));
     A = sys.A;
     PetscCall(MatCreateSubMatrix(A, inactive, inactive, MAT_INITIAL_MATRIX, &Aii));
-    PetscCall(PCCreate(comm, &pc));
+    PetscCall(PCCreate(PetscObjectComm((PetscObject)A), &pc));
     PetscCall(HierarchyMGSetUp(pc, mg, Aii, inactive));
     PetscInt nl;
     PetscCall(PCMGGetLevels(pc, &nl));
-    const PetscInt expected = cr ? L + 1 : L;
     ck.Check(nl == expected, tag + " the preconditioner has one level per mesh level (CR: and P1 on the finest mesh)", "%d levels", (int)nl);
     for (PetscInt l = nl - 1; l > 0; --l) {
       KSP       fineK, coarseK;
@@ -342,15 +368,139 @@ static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
     PetscCall(MatDestroy(&Aii));
     PetscCall(SystemDestroy(sys));
   }
-  PetscCall(MatDestroy(&Pt));
-  PetscCall(ISDestroy(&kept));
+  PetscFunctionReturn(0);
+}
+
+// max over the owned DOFs of fine that are not on Gamma_D of |a - b|, and of |b| (max over ranks).
+static PetscErrorCode DiffOffDirichlet(const Space &fine, Vec a, Vec b, PetscReal *diff, PetscReal *size)
+{
+  const PetscScalar *x, *y;
+  std::vector<char>  dirichlet(fine.numOwned, 0);
+  PetscReal          r[2] = {0, 0};
+  PetscFunctionBeginUser;
+  for (PetscInt i : fine.dirichletOwned) dirichlet[i] = 1;
+  PetscCall(VecGetArrayRead(a, &x));
+  PetscCall(VecGetArrayRead(b, &y));
+  for (PetscInt i = 0; i < fine.numOwned; ++i)
+    if (!dirichlet[i]) r[0] = std::max(r[0], std::fabs(PetscRealPart(x[i] - y[i]))), r[1] = std::max(r[1], std::fabs(PetscRealPart(y[i])));
+  PetscCall(VecRestoreArrayRead(b, &y));
+  PetscCall(VecRestoreArrayRead(a, &x));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, r, 2, MPIU_REAL, MPI_MAX, PetscObjectComm((PetscObject)a)));
+  *diff = r[0], *size = r[1];
+  PetscFunctionReturn(0);
+}
+
+// The P1 interpolant of 1 - x_dim (the last coordinate), which vanishes on the top side, Gamma_D here.
+static PetscErrorCode LinearOffTop(const Space &s, Vec u)
+{
+  Vec          loc;
+  PetscScalar *a;
+  PetscFunctionBeginUser;
+  PetscCall(DMGetLocalVector(s.dm, &loc));
+  PetscCall(VecGetArray(loc, &a));
+  for (PetscInt i = 0; i < s.numLocal; ++i) a[i] = 1 - s.vertX[i * s.dim + s.dim - 1];
+  PetscCall(VecRestoreArray(loc, &a));
+  PetscCall(DMLocalToGlobal(s.dm, loc, INSERT_VALUES, u));
+  PetscCall(DMRestoreLocalVector(s.dm, &loc));
+  PetscFunctionReturn(0);
+}
+
+// Three adaptive steps from a box: the cells whose centroid lies within 0.45 of the corner at the origin
+// are bisected (all edges), the new mesh redistributed (on more than one rank), and the P1 transfer of each
+// step recorded on the new cells, moved with them and assembled on the new space, as adapt.cpp does.
+static PetscErrorCode TestAdaptive(unit::Checker &ck, const HierarchyCase &hc)
+{
+  MPI_Comm       comm = PETSC_COMM_WORLD;
+  const PetscInt dim  = hc.mesh.dim;
+  DM             mesh;
+  MeshInfo       info;
+  Problem        problem;
+  Space          coarse, fine;
+  Hierarchy      mg;
+  PetscMPIInt    size;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  MeshOptions mo = hc.mesh;
+  mo.refine      = 1;
+  PetscCall(MeshCreate(comm, mo, &mesh, info));
+  PetscCall(unit::MakeProblem(comm, dim, {{hc.dirichlet}, {hc.contact}, "1", "0", "0", "0"}, problem));
+  PetscCall(SpaceCreate(mesh, Element::P1, problem, coarse));
+  const std::string tag = Format("adaptive %dD %s", (int)dim, ElementName(hc.element));
+  for (PetscInt step = 1; step <= 3; ++step) {
+    std::vector<char>     marked(coarse.NumCells(), 0);
+    std::vector<PetscInt> parent;
+    TransferRecord        rec;
+    CellValues            carried;
+    DM                    refined;
+    Vec                   uH, uh, ref;
+    Mat                   P;
+    PetscReal             diff, norm;
+    for (PetscInt c = 0; c < coarse.NumCells(); ++c) {
+      const Space::Coords X = coarse.X(c);
+      PetscReal           r2 = 0;
+      for (PetscInt d = 0; d < dim; ++d) {
+        PetscReal m = 0;
+        for (PetscInt k = 0; k <= dim; ++k) m += X.x[k * dim + d] / (dim + 1);
+        r2 += m * m;
+      }
+      marked[c] = r2 < 0.45 * 0.45;
+    }
+    PetscCall(RefineMarked(mesh, marked, LocalRefinement::BisectionAll, &refined, &parent));
+    PetscCall(DMCreateGlobalVector(coarse.dm, &uH));
+    PetscCall(Generic(coarse, uH));
+    PetscCall(RecordP1Transfer(coarse, refined, parent, rec));
+    PetscCall(EvaluateOnCells(coarse, uH, nullptr, refined, parent, carried));
+    if (size > 1) { // always moved: the transfer has to follow its cells
+      DM      dist;
+      PetscSF migration;
+      PetscCall(RedistributeMesh(refined, &dist, &migration));
+      PetscCall(MigrateCellValues(refined, migration, dist, rec.cells));
+      PetscCall(MigrateCellValues(refined, migration, dist, carried));
+      PetscCall(PetscSFDestroy(&migration));
+      PetscCall(DMDestroy(&refined));
+      refined = dist;
+    }
+    PetscCall(DMDestroy(&mesh));
+    mesh = refined;
+    PetscCall(SpaceCreate(mesh, Element::P1, problem, fine));
+    PetscCall(AssembleP1Transfer(rec, fine, &P));
+    PetscCall(DMCreateGlobalVector(fine.dm, &uh));
+    PetscCall(VecDuplicate(uh, &ref));
+    // a generic function: as the solution's transfer carries it
+    PetscCall(MatMult(P, uH, uh));
+    PetscCall(ApplyCellValues(fine, carried, nullptr, ref));
+    PetscCall(DiffOffDirichlet(fine, uh, ref, &diff, &norm));
+    ck.Check(norm > 0.5 && diff < 1e-13 * norm, tag + Format(" step %d (%d -> %d DOFs): P uH equals the transfer of transfer.h off Gamma_D", (int)step, (int)coarse.numGlobal, (int)fine.numGlobal), "max difference %.3e of %.3e", (double)diff, (double)norm);
+    // a linear function that vanishes on Gamma_D: reproduced exactly
+    PetscCall(LinearOffTop(coarse, uH));
+    PetscCall(MatMult(P, uH, uh));
+    PetscCall(LinearOffTop(fine, ref));
+    PetscCall(DiffOffDirichlet(fine, uh, ref, &diff, &norm));
+    ck.Check(norm > 0.5 && diff < 1e-13 * norm, tag + Format(" step %d: P reproduces 1 - x_%d (zero on Gamma_D) exactly", (int)step, (int)dim), "max difference %.3e of %.3e", (double)diff, (double)norm);
+    mg.P.push_back(P);
+    for (Vec *v : {&uH, &uh, &ref}) PetscCall(VecDestroy(v));
+    PetscCall(SpaceDestroy(coarse));
+    std::swap(coarse, fine);
+  }
+  // The multigrid over the four meshes (CR: and P1 to CR on the last one), on the test's inactive set.
+  const bool cr = hc.element == Element::CR;
+  Space      top;
+  IS         inactive;
+  std::vector<char> active;
+  if (cr) {
+    Mat Q;
+    PetscCall(SpaceCreate(mesh, Element::CR, problem, top));
+    PetscCall(P1ToCRMatrix(coarse, top, &Q));
+    mg.P.push_back(Q);
+  }
+  const Space &finest = cr ? top : coarse;
+  PetscCall(TestInactiveSet(finest, &inactive, active));
+  PetscCall(CheckGalerkin(ck, tag, finest, problem, mg, inactive, cr ? 5 : 4));
   PetscCall(ISDestroy(&inactive));
-  PetscCall(h.Destroy());
   PetscCall(mg.Destroy());
-  for (Space &s : p1s) PetscCall(SpaceDestroy(s));
-  for (Space &s : spaces) PetscCall(SpaceDestroy(s));
-  PetscCall(MeshLevelsDestroy(levels));
-  PetscCall(DMDestroy(&fineDM));
+  PetscCall(SpaceDestroy(top));
+  PetscCall(SpaceDestroy(coarse));
+  PetscCall(DMDestroy(&mesh));
   PetscFunctionReturn(0);
 }
 
@@ -373,6 +523,8 @@ int main(int argc, char **argv)
   for (const HierarchyCase &hc : cases) {
     ierr = TestCase(ck, hc);
     if (ierr) ck.PetscFailure(ierr, hc.name + " (PETSc error)");
+    ierr = TestAdaptive(ck, hc);
+    if (ierr) ck.PetscFailure(ierr, "adaptive " + hc.name + " (PETSc error)");
   }
   const int rc = ck.Finish();
   ierr         = PetscFinalize();

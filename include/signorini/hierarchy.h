@@ -20,6 +20,7 @@
 #pragma once
 
 #include "signorini/space.h"
+#include "signorini/transfer.h"
 
 #include <petscksp.h>
 
@@ -32,6 +33,24 @@ PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const 
 // The embedding of P1 into CR on one mesh (P1 is a subspace of CR): a face's row holds 1/d for each of its
 // vertices (Dirichlet rows and columns empty, as above). Collective.
 PetscErrorCode P1ToCRMatrix(const Space &p1, const Space &cr, Mat *Q);
+
+// Adaptive refinement (adapt.h) may redistribute the fine mesh before the fine space exists, so the P1
+// transfer to it is first recorded on the fine cells, on the ranks of their parents, travels with the
+// cells (MigrateCellValues) and is assembled once the fine space exists. The rows are those of
+// ProlongationMatrix for P1 (the coarse basis functions at the fine vertex, which any nested refinement,
+// uniform or not, reproduces exactly), the columns the coarse space's global indices, which stay valid
+// however the fine mesh is distributed.
+struct TransferRecord {
+  // Per fine cell (c - cStart), for each of its dim + 1 vertices in the order of the cell tables the
+  // (dim + 1) coarse global columns of its parent cell (-1: a Dirichlet DOF or a zero weight), then the
+  // (dim + 1)^2 weights: a CellValues whose "DOFs per cell" are the (dim + 1)^2 pairs.
+  CellValues cells;
+  PetscInt   coarseOwned = 0, coarseGlobal = 0; // the coarse space's layout
+};
+// On the fine mesh alone (P1 coarse space). Local to each rank.
+PetscErrorCode RecordP1Transfer(const Space &coarse, DM fine, const std::vector<PetscInt> &parent, TransferRecord &r);
+// P (global fine x global coarse) from the record of fine's cells, fine a P1 space. Collective.
+PetscErrorCode AssembleP1Transfer(const TransferRecord &r, const Space &fine, Mat *P);
 
 // The transfers between consecutive levels, coarse to fine: P[l] maps level l to level l+1. Only the
 // matrices are kept (no meshes, no spaces).
