@@ -70,6 +70,7 @@ PetscInt MatchSets(const PetscInt *cur, PetscInt n, const std::vector<PetscInt> 
   return (n - common) + (m - common);
 }
 
+PetscErrorCode BlockToAIJ(Mat B, Mat *aij);
 PetscErrorCode BlockToHypre(Mat B, Mat *H);
 
 // The set cur (n entries) becomes the reference of a fresh set-up.
@@ -97,11 +98,16 @@ PetscErrorCode BuildAmg(PC pc, Reuse &r, Mat P, const PetscInt *cur, PetscInt n)
   PetscCall(PCCreate(PetscObjectComm((PetscObject)pc), &r.amg));
   PetscCall(PCGetOptionsPrefix(pc, &prefix));
   PetscCall(PCSetOptionsPrefix(r.amg, prefix));
+  // A block of AmgReuseJacobian holds no entries: only a new set-up copies it (AIJ for the multigrid,
+  // hypre's format for BoomerAMG), so a solve holds one copy of A_II at most.
+  PetscCall(PetscObjectTypeCompare((PetscObject)P, MATSHELL, &lazy));
   if (r.innerType == PCMG && r.opts.hierarchy && !r.opts.hierarchy->P.empty()) {
     IS inactive;
+    if (lazy) PetscCall(BlockToAIJ(P, &H));
     PetscCall(ISCreateGeneral(PetscObjectComm((PetscObject)pc), n, cur, PETSC_USE_POINTER, &inactive));
-    PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)pc), HierarchyMGSetUp(r.amg, *r.opts.hierarchy, P, inactive)));
+    PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)pc), HierarchyMGSetUp(r.amg, *r.opts.hierarchy, H, inactive)));
     PetscCall(ISDestroy(&inactive));
+    if (lazy) PetscCall(MatDestroy(&H)); // the multigrid keeps its reference
     PetscCall(ReuseRecord(r, cur, n));
     PetscFunctionReturn(0);
   }
@@ -110,8 +116,6 @@ PetscErrorCode BuildAmg(PC pc, Reuse &r, Mat P, const PetscInt *cur, PetscInt n)
   PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)pc), PCSetType(r.amg, r.innerType.c_str())));
   if (r.innerType == PCHYPRE) PetscCall(PCHYPRESetType(r.amg, "boomeramg"));
   PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)pc), PCSetFromOptions(r.amg)));
-  // A block of AmgReuseJacobian holds no entries: only a new set-up copies it, into hypre's format.
-  PetscCall(PetscObjectTypeCompare((PetscObject)P, MATSHELL, &lazy));
   if (lazy) PetscCall(BlockToHypre(P, &H));
   PetscCall(PCSetOperators(r.amg, H, H));
   PetscCall(PCSetUp(r.amg));
@@ -354,14 +358,22 @@ PetscErrorCode BlockView(Mat, PetscViewer viewer)
   PetscFunctionReturn(0);
 }
 
+// The block's entries as an AIJ matrix, for a multigrid set-up.
+PetscErrorCode BlockToAIJ(Mat B, Mat *aij)
+{
+  Block *b;
+  PetscFunctionBeginUser;
+  PetscCall(MatShellGetContext(B, &b));
+  PetscCall(MatCreateSubMatrix(b->A, b->rows, b->rows, MAT_INITIAL_MATRIX, aij));
+  PetscFunctionReturn(0);
+}
+
 // The block's entries in hypre's format, for a BoomerAMG set-up (the AIJ copy lives only until converted).
 PetscErrorCode BlockToHypre(Mat B, Mat *H)
 {
-  Block *b;
-  Mat    aij;
+  Mat aij;
   PetscFunctionBeginUser;
-  PetscCall(MatShellGetContext(B, &b));
-  PetscCall(MatCreateSubMatrix(b->A, b->rows, b->rows, MAT_INITIAL_MATRIX, &aij));
+  PetscCall(BlockToAIJ(B, &aij));
   PetscCall(MatConvert(aij, MATHYPRE, MAT_INITIAL_MATRIX, H));
   PetscCall(MatDestroy(&aij));
   PetscFunctionReturn(0);
@@ -408,17 +420,15 @@ PetscErrorCode AmgReuseJacobian(SNES snes, Mat A, Mat *J)
   PetscCall(KSPGetPC(ksp, &pc));
   PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCSHELL, &shell));
   PetscCall(PetscObjectTypeCompare((PetscObject)snes, SNESVINEWTONRSLS, &rsls));
-  bool hypre = false;
+  bool lazy = false; // blocks without entries: BoomerAMG and the multigrid copy a block only to set up
   if (shell && rsls) {
     const char *name;
     PetscCall(PCShellGetName(pc, &name));
     Reuse *r;
     PetscCall(PCShellGetContext(pc, &r));
-    // -vi_pc_type mg without a hierarchy (a single mesh, the coarsest level of P1) is BoomerAMG too
-    const bool noHierarchy = !r->opts.hierarchy || r->opts.hierarchy->P.empty();
-    hypre = name && std::string(name) == kShellName && (r->innerType == PCHYPRE || (r->innerType == PCMG && noHierarchy));
+    lazy = name && std::string(name) == kShellName && (r->innerType == PCHYPRE || r->innerType == PCMG);
   }
-  if (!hypre) {
+  if (!lazy) {
     PetscCall(PetscObjectReference((PetscObject)A));
     *J = A;
     PetscFunctionReturn(0);
