@@ -30,6 +30,22 @@ PetscErrorCode CellsPerDof(const Space &fine, std::vector<PetscReal> &count)
   PetscCall(DMRestoreLocalVector(fine.dm, &loc));
   PetscFunctionReturn(0);
 }
+
+// The bound nz above is reached by few rows (a P1 row has one or two entries): the assembled matrix keeps
+// its allocation, 2.5 times its entries for P1 in 2D. A duplicate is allocated to its entries (the same
+// entries in the same order); it is made while the matrix is small next to the rest of the level.
+PetscErrorCode Compact(Mat *P)
+{
+  MatInfo info;
+  Mat     copy;
+  PetscFunctionBeginUser;
+  PetscCall(MatGetInfo(*P, MAT_GLOBAL_SUM, &info));
+  if (!(info.nz_allocated > info.nz_used)) PetscFunctionReturn(0);
+  PetscCall(MatDuplicate(*P, MAT_COPY_VALUES, &copy));
+  PetscCall(MatDestroy(P));
+  *P = copy;
+  PetscFunctionReturn(0);
+}
 } // namespace
 
 PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const std::vector<PetscInt> &parent, Mat *P)
@@ -94,6 +110,7 @@ PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const 
   PetscCall(ISLocalToGlobalMappingRestoreIndices(fine.ltog, &gf));
   PetscCall(MatAssemblyBegin(*P, MAT_FINAL_ASSEMBLY));
   PetscCall(MatAssemblyEnd(*P, MAT_FINAL_ASSEMBLY));
+  PetscCall(Compact(P));
   PetscFunctionReturn(0);
 }
 
