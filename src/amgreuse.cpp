@@ -71,6 +71,7 @@ PetscInt MatchSets(const PetscInt *cur, PetscInt n, const std::vector<PetscInt> 
 }
 
 PetscErrorCode BlockToAIJ(Mat B, Mat *aij);
+PetscErrorCode BlockAdopt(Mat B, Mat aij);
 PetscErrorCode BlockToHypre(Mat B, Mat *H);
 
 // The set cur (n entries) becomes the reference of a fresh set-up.
@@ -103,7 +104,10 @@ PetscErrorCode BuildAmg(PC pc, Reuse &r, Mat P, const PetscInt *cur, PetscInt n)
   PetscCall(PetscObjectTypeCompare((PetscObject)P, MATSHELL, &lazy));
   if (r.innerType == PCMG && r.opts.hierarchy && !r.opts.hierarchy->P.empty()) {
     IS inactive;
-    if (lazy) PetscCall(BlockToAIJ(P, &H));
+    if (lazy) {
+      PetscCall(BlockToAIJ(P, &H));
+      PetscCall(BlockAdopt(P, H));
+    }
     PetscCall(ISCreateGeneral(PetscObjectComm((PetscObject)pc), n, cur, PETSC_USE_POINTER, &inactive));
     PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)pc), HierarchyMGSetUp(r.amg, *r.opts.hierarchy, H, inactive)));
     PetscCall(ISDestroy(&inactive));
@@ -173,6 +177,12 @@ PetscErrorCode ReuseSetUp(PC pc)
     r->same  = global[0] == 0;
     r->fresh = false;
     if (r->stats) r->stats->reuses++;
+    PetscBool lazy, aij;
+    Mat       Pref;
+    PetscCall(PCGetOperators(r->amg, NULL, &Pref));
+    PetscCall(PetscObjectTypeCompare((PetscObject)P, MATSHELL, &lazy));
+    PetscCall(PetscObjectTypeCompareAny((PetscObject)Pref, &aij, MATSEQAIJ, MATMPIAIJ, ""));
+    if (r->same && lazy && aij) PetscCall(BlockAdopt(P, Pref)); // the multigrid's copy is this block's
   }
   PetscCall(ISRestoreIndices(inactive, &cur));
   // The work vectors of a changed set (in ReuseApply) only when the set has changed: the usual case,
@@ -276,6 +286,7 @@ PetscErrorCode JacobianGetDiagonal(Mat J, Vec d)
 // A only to multiply by it.
 struct Block {
   Mat      A    = nullptr; // the whole operator (a reference)
+  Mat      aij  = nullptr; // the block's entries where a multigrid set-up holds them (a reference), else null
   IS       rows = nullptr; // I: owned global rows, ascending (a reference)
   PetscInt rstart = 0;
   Vec      full = nullptr, fullOut = nullptr; // work vectors of A's size, zero outside I; made when first needed
@@ -315,10 +326,17 @@ PetscErrorCode MoveEntries(const Block &b, Vec from, Vec to, bool intoFull)
   PetscFunctionReturn(0);
 }
 
+// The multigrid's copy of the block, where there is one, multiplies without the work vectors of A's size
+// (the same products: the zeros outside I add nothing).
 PetscErrorCode BlockMult(Mat B, Vec x, Vec y)
 {
   Block *b;
   PetscFunctionBeginUser;
+  PetscCall(MatShellGetContext(B, &b));
+  if (b->aij) {
+    PetscCall(MatMult(b->aij, x, y));
+    PetscFunctionReturn(0);
+  }
   PetscCall(BlockContext(B, &b));
   PetscCall(MoveEntries(*b, x, b->full, true));
   PetscCall(MatMult(b->A, b->full, b->fullOut));
@@ -330,6 +348,11 @@ PetscErrorCode BlockGetDiagonal(Mat B, Vec d)
 {
   Block *b;
   PetscFunctionBeginUser;
+  PetscCall(MatShellGetContext(B, &b));
+  if (b->aij) {
+    PetscCall(MatGetDiagonal(b->aij, d));
+    PetscFunctionReturn(0);
+  }
   PetscCall(BlockContext(B, &b));
   PetscCall(MatGetDiagonal(b->A, b->fullOut));
   PetscCall(MoveEntries(*b, b->fullOut, d, false));
@@ -343,6 +366,7 @@ PetscErrorCode BlockDestroy(Mat B)
   PetscCall(MatShellGetContext(B, &b));
   PetscCall(VecDestroy(&b->full));
   PetscCall(VecDestroy(&b->fullOut));
+  PetscCall(MatDestroy(&b->aij));
   PetscCall(ISDestroy(&b->rows));
   PetscCall(MatDestroy(&b->A));
   delete b;
@@ -365,6 +389,21 @@ PetscErrorCode BlockToAIJ(Mat B, Mat *aij)
   PetscFunctionBeginUser;
   PetscCall(MatShellGetContext(B, &b));
   PetscCall(MatCreateSubMatrix(b->A, b->rows, b->rows, MAT_INITIAL_MATRIX, aij));
+  PetscFunctionReturn(0);
+}
+
+// B multiplies with aij from now on: the AIJ copy of B's own set that a multigrid holds (A is constant,
+// so a copy made for the same set at an earlier step has the same entries).
+PetscErrorCode BlockAdopt(Mat B, Mat aij)
+{
+  Block *b;
+  PetscFunctionBeginUser;
+  PetscCall(MatShellGetContext(B, &b));
+  PetscCall(PetscObjectReference((PetscObject)aij));
+  PetscCall(MatDestroy(&b->aij));
+  b->aij = aij;
+  PetscCall(VecDestroy(&b->full));
+  PetscCall(VecDestroy(&b->fullOut));
   PetscFunctionReturn(0);
 }
 
