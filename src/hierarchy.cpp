@@ -487,6 +487,7 @@ PetscErrorCode HierarchyMGSetUp(PC pc, const Hierarchy &h, Mat A, IS inactive)
   PetscCall(PCSetOperators(pc, A, A));
   PetscCall(PCSetFromOptions(pc));
   PetscCall(PCSetUp(pc));
+  ReleaseFreedMemory(); // the copies of the transfers and the products' work data, before the solve needs the memory
   PetscFunctionReturn(0);
 }
 
