@@ -446,8 +446,9 @@ PetscErrorCode GalerkinOperator(Mat Afine, Mat Pt, Mat *Ac)
   const PetscReal expected = 3 * a.nz_used / PetscMax(rows, 1) * cols;
   PetscCall(MatProductCreate(Afine, Pt, NULL, Ac));
   PetscCall(MatProductSetType(*Ac, MATPRODUCT_PtAP));
+  PetscCall(MatProductSetFill(*Ac, PETSC_DEFAULT));
+  PetscCall(MatProductSetFromOptions(*Ac)); // in parallel PETSc picks its algorithm by the fill: the default's choice
   PetscCall(MatProductSetFill(*Ac, PetscMin(2.0, expected / PetscMax(a.nz_used + p.nz_used, 1.0))));
-  PetscCall(MatProductSetFromOptions(*Ac));
   PetscCall(MatProductSymbolic(*Ac));
   PetscCall(MatProductNumeric(*Ac));
   PetscCall(MatProductClear(*Ac)); // computed once: its references to both factors and its work data go
