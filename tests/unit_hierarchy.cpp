@@ -195,6 +195,9 @@ static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
     PetscCall(VecNorm(ref, NORM_INFINITY, &err));
     ck.Check(size > 0.5 && err < 1e-13 * size, tag + Format(" level %d: P uH equals the transfer of transfer.h off Gamma_D", (int)l), "max error %.3e of %.3e", (double)err, (double)size);
     for (Vec *v : {&uH, &uh, &ref}) PetscCall(VecDestroy(v));
+    MatInfo info;
+    PetscCall(MatGetInfo(h.P[l - 1], MAT_GLOBAL_SUM, &info));
+    ck.Check(info.nz_allocated == info.nz_used, tag + Format(" level %d: P is allocated to its entries", (int)l), "%.0f allocated for %.0f entries", info.nz_allocated, info.nz_used);
   }
 
   // The multigrid's hierarchy, as nested iteration builds it: P1 the transfers above; CR P1 on every level
