@@ -231,6 +231,7 @@ PetscErrorCode AssembleP1Transfer(const TransferRecord &r, const Space &fine, Ma
   PetscCall(ISLocalToGlobalMappingRestoreIndices(fine.ltog, &gf));
   PetscCall(MatAssemblyBegin(*P, MAT_FINAL_ASSEMBLY));
   PetscCall(MatAssemblyEnd(*P, MAT_FINAL_ASSEMBLY));
+  PetscCall(Compact(P));
   PetscFunctionReturn(0);
 }
 
