@@ -70,6 +70,8 @@ PetscInt MatchSets(const PetscInt *cur, PetscInt n, const std::vector<PetscInt> 
   return (n - common) + (m - common);
 }
 
+PetscErrorCode BlockToAIJ(Mat B, Mat *aij);
+PetscErrorCode BlockAdopt(Mat B, Mat aij);
 PetscErrorCode BlockToHypre(Mat B, Mat *H);
 
 // The set cur (n entries) becomes the reference of a fresh set-up.
@@ -97,11 +99,19 @@ PetscErrorCode BuildAmg(PC pc, Reuse &r, Mat P, const PetscInt *cur, PetscInt n)
   PetscCall(PCCreate(PetscObjectComm((PetscObject)pc), &r.amg));
   PetscCall(PCGetOptionsPrefix(pc, &prefix));
   PetscCall(PCSetOptionsPrefix(r.amg, prefix));
+  // A block of AmgReuseJacobian holds no entries: only a new set-up copies it (AIJ for the multigrid,
+  // hypre's format for BoomerAMG), so a solve holds one copy of A_II at most.
+  PetscCall(PetscObjectTypeCompare((PetscObject)P, MATSHELL, &lazy));
   if (r.innerType == PCMG && r.opts.hierarchy && !r.opts.hierarchy->P.empty()) {
     IS inactive;
+    if (lazy) {
+      PetscCall(BlockToAIJ(P, &H));
+      PetscCall(BlockAdopt(P, H));
+    }
     PetscCall(ISCreateGeneral(PetscObjectComm((PetscObject)pc), n, cur, PETSC_USE_POINTER, &inactive));
-    PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)pc), HierarchyMGSetUp(r.amg, *r.opts.hierarchy, P, inactive)));
+    PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)pc), HierarchyMGSetUp(r.amg, *r.opts.hierarchy, H, inactive)));
     PetscCall(ISDestroy(&inactive));
+    if (lazy) PetscCall(MatDestroy(&H)); // the multigrid keeps its reference
     PetscCall(ReuseRecord(r, cur, n));
     PetscFunctionReturn(0);
   }
@@ -110,8 +120,6 @@ PetscErrorCode BuildAmg(PC pc, Reuse &r, Mat P, const PetscInt *cur, PetscInt n)
   PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)pc), PCSetType(r.amg, r.innerType.c_str())));
   if (r.innerType == PCHYPRE) PetscCall(PCHYPRESetType(r.amg, "boomeramg"));
   PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)pc), PCSetFromOptions(r.amg)));
-  // A block of AmgReuseJacobian holds no entries: only a new set-up copies it, into hypre's format.
-  PetscCall(PetscObjectTypeCompare((PetscObject)P, MATSHELL, &lazy));
   if (lazy) PetscCall(BlockToHypre(P, &H));
   PetscCall(PCSetOperators(r.amg, H, H));
   PetscCall(PCSetUp(r.amg));
@@ -169,6 +177,12 @@ PetscErrorCode ReuseSetUp(PC pc)
     r->same  = global[0] == 0;
     r->fresh = false;
     if (r->stats) r->stats->reuses++;
+    PetscBool lazy, aij;
+    Mat       Pref;
+    PetscCall(PCGetOperators(r->amg, NULL, &Pref));
+    PetscCall(PetscObjectTypeCompare((PetscObject)P, MATSHELL, &lazy));
+    PetscCall(PetscObjectTypeCompareAny((PetscObject)Pref, &aij, MATSEQAIJ, MATMPIAIJ, ""));
+    if (r->same && lazy && aij) PetscCall(BlockAdopt(P, Pref)); // the multigrid's copy is this block's
   }
   PetscCall(ISRestoreIndices(inactive, &cur));
   // The work vectors of a changed set (in ReuseApply) only when the set has changed: the usual case,
@@ -272,6 +286,7 @@ PetscErrorCode JacobianGetDiagonal(Mat J, Vec d)
 // A only to multiply by it.
 struct Block {
   Mat      A    = nullptr; // the whole operator (a reference)
+  Mat      aij  = nullptr; // the block's entries where a multigrid set-up holds them (a reference), else null
   IS       rows = nullptr; // I: owned global rows, ascending (a reference)
   PetscInt rstart = 0;
   Vec      full = nullptr, fullOut = nullptr; // work vectors of A's size, zero outside I; made when first needed
@@ -311,10 +326,17 @@ PetscErrorCode MoveEntries(const Block &b, Vec from, Vec to, bool intoFull)
   PetscFunctionReturn(0);
 }
 
+// The multigrid's copy of the block, where there is one, multiplies without the work vectors of A's size
+// (the same products: the zeros outside I add nothing).
 PetscErrorCode BlockMult(Mat B, Vec x, Vec y)
 {
   Block *b;
   PetscFunctionBeginUser;
+  PetscCall(MatShellGetContext(B, &b));
+  if (b->aij) {
+    PetscCall(MatMult(b->aij, x, y));
+    PetscFunctionReturn(0);
+  }
   PetscCall(BlockContext(B, &b));
   PetscCall(MoveEntries(*b, x, b->full, true));
   PetscCall(MatMult(b->A, b->full, b->fullOut));
@@ -326,6 +348,11 @@ PetscErrorCode BlockGetDiagonal(Mat B, Vec d)
 {
   Block *b;
   PetscFunctionBeginUser;
+  PetscCall(MatShellGetContext(B, &b));
+  if (b->aij) {
+    PetscCall(MatGetDiagonal(b->aij, d));
+    PetscFunctionReturn(0);
+  }
   PetscCall(BlockContext(B, &b));
   PetscCall(MatGetDiagonal(b->A, b->fullOut));
   PetscCall(MoveEntries(*b, b->fullOut, d, false));
@@ -339,6 +366,7 @@ PetscErrorCode BlockDestroy(Mat B)
   PetscCall(MatShellGetContext(B, &b));
   PetscCall(VecDestroy(&b->full));
   PetscCall(VecDestroy(&b->fullOut));
+  PetscCall(MatDestroy(&b->aij));
   PetscCall(ISDestroy(&b->rows));
   PetscCall(MatDestroy(&b->A));
   delete b;
@@ -354,14 +382,37 @@ PetscErrorCode BlockView(Mat, PetscViewer viewer)
   PetscFunctionReturn(0);
 }
 
+// The block's entries as an AIJ matrix, for a multigrid set-up.
+PetscErrorCode BlockToAIJ(Mat B, Mat *aij)
+{
+  Block *b;
+  PetscFunctionBeginUser;
+  PetscCall(MatShellGetContext(B, &b));
+  PetscCall(MatCreateSubMatrix(b->A, b->rows, b->rows, MAT_INITIAL_MATRIX, aij));
+  PetscFunctionReturn(0);
+}
+
+// B multiplies with aij from now on: the AIJ copy of B's own set that a multigrid holds (A is constant,
+// so a copy made for the same set at an earlier step has the same entries).
+PetscErrorCode BlockAdopt(Mat B, Mat aij)
+{
+  Block *b;
+  PetscFunctionBeginUser;
+  PetscCall(MatShellGetContext(B, &b));
+  PetscCall(PetscObjectReference((PetscObject)aij));
+  PetscCall(MatDestroy(&b->aij));
+  b->aij = aij;
+  PetscCall(VecDestroy(&b->full));
+  PetscCall(VecDestroy(&b->fullOut));
+  PetscFunctionReturn(0);
+}
+
 // The block's entries in hypre's format, for a BoomerAMG set-up (the AIJ copy lives only until converted).
 PetscErrorCode BlockToHypre(Mat B, Mat *H)
 {
-  Block *b;
-  Mat    aij;
+  Mat aij;
   PetscFunctionBeginUser;
-  PetscCall(MatShellGetContext(B, &b));
-  PetscCall(MatCreateSubMatrix(b->A, b->rows, b->rows, MAT_INITIAL_MATRIX, &aij));
+  PetscCall(BlockToAIJ(B, &aij));
   PetscCall(MatConvert(aij, MATHYPRE, MAT_INITIAL_MATRIX, H));
   PetscCall(MatDestroy(&aij));
   PetscFunctionReturn(0);
@@ -408,17 +459,15 @@ PetscErrorCode AmgReuseJacobian(SNES snes, Mat A, Mat *J)
   PetscCall(KSPGetPC(ksp, &pc));
   PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCSHELL, &shell));
   PetscCall(PetscObjectTypeCompare((PetscObject)snes, SNESVINEWTONRSLS, &rsls));
-  bool hypre = false;
+  bool lazy = false; // blocks without entries: BoomerAMG and the multigrid copy a block only to set up
   if (shell && rsls) {
     const char *name;
     PetscCall(PCShellGetName(pc, &name));
     Reuse *r;
     PetscCall(PCShellGetContext(pc, &r));
-    // -vi_pc_type mg without a hierarchy (a single mesh, the coarsest level of P1) is BoomerAMG too
-    const bool noHierarchy = !r->opts.hierarchy || r->opts.hierarchy->P.empty();
-    hypre = name && std::string(name) == kShellName && (r->innerType == PCHYPRE || (r->innerType == PCMG && noHierarchy));
+    lazy = name && std::string(name) == kShellName && (r->innerType == PCHYPRE || r->innerType == PCMG);
   }
-  if (!hypre) {
+  if (!lazy) {
     PetscCall(PetscObjectReference((PetscObject)A));
     *J = A;
     PetscFunctionReturn(0);

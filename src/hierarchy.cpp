@@ -30,6 +30,22 @@ PetscErrorCode CellsPerDof(const Space &fine, std::vector<PetscReal> &count)
   PetscCall(DMRestoreLocalVector(fine.dm, &loc));
   PetscFunctionReturn(0);
 }
+
+// The bound nz above is reached by few rows (a P1 row has one or two entries): the assembled matrix keeps
+// its allocation, 2.5 times its entries for P1 in 2D. A duplicate is allocated to its entries (the same
+// entries in the same order); it is made while the matrix is small next to the rest of the level.
+PetscErrorCode Compact(Mat *P)
+{
+  MatInfo info;
+  Mat     copy;
+  PetscFunctionBeginUser;
+  PetscCall(MatGetInfo(*P, MAT_GLOBAL_SUM, &info));
+  if (!(info.nz_allocated > info.nz_used)) PetscFunctionReturn(0);
+  PetscCall(MatDuplicate(*P, MAT_COPY_VALUES, &copy));
+  PetscCall(MatDestroy(P));
+  *P = copy;
+  PetscFunctionReturn(0);
+}
 } // namespace
 
 PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const std::vector<PetscInt> &parent, Mat *P)
@@ -94,6 +110,7 @@ PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const 
   PetscCall(ISLocalToGlobalMappingRestoreIndices(fine.ltog, &gf));
   PetscCall(MatAssemblyBegin(*P, MAT_FINAL_ASSEMBLY));
   PetscCall(MatAssemblyEnd(*P, MAT_FINAL_ASSEMBLY));
+  PetscCall(Compact(P));
   PetscFunctionReturn(0);
 }
 
@@ -214,6 +231,7 @@ PetscErrorCode AssembleP1Transfer(const TransferRecord &r, const Space &fine, Ma
   PetscCall(ISLocalToGlobalMappingRestoreIndices(fine.ltog, &gf));
   PetscCall(MatAssemblyBegin(*P, MAT_FINAL_ASSEMBLY));
   PetscCall(MatAssemblyEnd(*P, MAT_FINAL_ASSEMBLY));
+  PetscCall(Compact(P));
   PetscFunctionReturn(0);
 }
 
@@ -261,6 +279,139 @@ PetscErrorCode TruncateTransfer(Mat P, IS rows, IS *cols, Mat *Pt)
 }
 
 namespace {
+// A truncated transfer that stores no entries of its own: Pt = P restricted to the rows `rows` and the
+// columns `cols`, applied through P on vectors of P's sizes that are zero outside them. A copy of P's
+// entries (MatCreateSubMatrix) on the finest CR level is 40 B per DOF; this one holds a vector of each
+// size and the local positions of the kept rows and columns. The results are those of the copy, bit for
+// bit: P's rows and columns in the same order, the dropped columns have no entries in the kept rows,
+// and the dropped rows enter with zeros (x + 0 = x); MatMultAdd starts each row from the row of y, as
+// AIJ's does.
+struct Truncated {
+  Mat                   P = nullptr;
+  Vec                   fine = nullptr, coarse = nullptr; // zero outside the kept rows / columns between uses
+  std::vector<PetscInt> rows, cols;                       // local positions of the kept rows / columns
+  std::vector<PetscInt> droppedRows, droppedCols;         // and of the others (the active set: few)
+};
+
+// The local positions of the owned global indices of `is` (ascending) in a layout starting at `start`
+// with n owned entries, and the positions not among them.
+PetscErrorCode KeptPositions(IS is, PetscInt start, PetscInt n, std::vector<PetscInt> &kept, std::vector<PetscInt> &dropped)
+{
+  const PetscInt *idx;
+  PetscInt        m;
+  PetscFunctionBeginUser;
+  PetscCall(ISGetLocalSize(is, &m));
+  PetscCall(ISGetIndices(is, &idx));
+  kept.resize(m);
+  dropped.clear();
+  PetscInt next = 0;
+  for (PetscInt k = 0; k < m; ++k) {
+    kept[k] = idx[k] - start;
+    while (next < kept[k]) dropped.push_back(next++);
+    ++next;
+  }
+  while (next < n) dropped.push_back(next++);
+  PetscCall(ISRestoreIndices(is, &idx));
+  PetscFunctionReturn(0);
+}
+
+// short <-> full: into the kept positions of full (intoFull), or gathered from them.
+PetscErrorCode MoveKept(const std::vector<PetscInt> &pos, Vec shortVec, Vec full, bool intoFull)
+{
+  PetscScalar *s, *f;
+  PetscFunctionBeginUser;
+  PetscCall(VecGetArray(shortVec, &s));
+  PetscCall(VecGetArray(full, &f));
+  const PetscInt n = (PetscInt)pos.size();
+  if (intoFull)
+    for (PetscInt k = 0; k < n; ++k) f[pos[k]] = s[k];
+  else
+    for (PetscInt k = 0; k < n; ++k) s[k] = f[pos[k]];
+  PetscCall(VecRestoreArray(full, &f));
+  PetscCall(VecRestoreArray(shortVec, &s));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ZeroAt(const std::vector<PetscInt> &pos, Vec v)
+{
+  PetscScalar *a;
+  PetscFunctionBeginUser;
+  if (pos.empty()) PetscFunctionReturn(0);
+  PetscCall(VecGetArray(v, &a));
+  for (PetscInt k : pos) a[k] = 0;
+  PetscCall(VecRestoreArray(v, &a));
+  PetscFunctionReturn(0);
+}
+
+// z = Pt x or Pt^T x (transpose), + y where y is given: through P (or P^T) on the full vectors, the
+// output's full vector holding y on the kept positions for the sum (MatMultAdd adds in place).
+PetscErrorCode TruncatedApply(Mat T, Vec x, Vec y, Vec z, bool transpose)
+{
+  Truncated *t;
+  PetscFunctionBeginUser;
+  PetscCall(MatShellGetContext(T, &t));
+  const std::vector<PetscInt> &in = transpose ? t->rows : t->cols, &out = transpose ? t->cols : t->rows;
+  const std::vector<PetscInt> &dropped = transpose ? t->droppedCols : t->droppedRows;
+  Vec                          inFull = transpose ? t->fine : t->coarse, outFull = transpose ? t->coarse : t->fine;
+  PetscCall(MoveKept(in, x, inFull, true));
+  if (y) {
+    PetscCall(MoveKept(out, y, outFull, true));
+    if (transpose) PetscCall(MatMultTransposeAdd(t->P, inFull, outFull, outFull));
+    else PetscCall(MatMultAdd(t->P, inFull, outFull, outFull));
+  } else if (transpose) PetscCall(MatMultTranspose(t->P, inFull, outFull));
+  else PetscCall(MatMult(t->P, inFull, outFull));
+  PetscCall(MoveKept(out, z, outFull, false));
+  PetscCall(ZeroAt(dropped, outFull));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TruncatedMult(Mat T, Vec x, Vec y) { return TruncatedApply(T, x, NULL, y, false); }
+PetscErrorCode TruncatedMultAdd(Mat T, Vec x, Vec y, Vec z) { return TruncatedApply(T, x, y, z, false); }
+PetscErrorCode TruncatedMultTranspose(Mat T, Vec x, Vec y) { return TruncatedApply(T, x, NULL, y, true); }
+PetscErrorCode TruncatedMultTransposeAdd(Mat T, Vec x, Vec y, Vec z) { return TruncatedApply(T, x, y, z, true); }
+
+PetscErrorCode TruncatedDestroy(Mat T)
+{
+  Truncated *t;
+  PetscFunctionBeginUser;
+  PetscCall(MatShellGetContext(T, &t));
+  PetscCall(MatDestroy(&t->P));
+  PetscCall(VecDestroy(&t->fine));
+  PetscCall(VecDestroy(&t->coarse));
+  delete t;
+  PetscFunctionReturn(0);
+}
+} // namespace
+
+PetscErrorCode TruncatedTransferShell(Mat P, IS rows, IS cols, Mat *T)
+{
+  PetscInt m, n, M, N, rStart, cStart, mFull, nFull;
+  PetscFunctionBeginUser;
+  auto *t = new Truncated;
+  t->P    = P;
+  PetscCall(PetscObjectReference((PetscObject)P));
+  PetscCall(MatCreateVecs(P, &t->coarse, &t->fine));
+  PetscCall(VecSet(t->coarse, 0));
+  PetscCall(VecSet(t->fine, 0));
+  PetscCall(MatGetOwnershipRange(P, &rStart, NULL));
+  PetscCall(MatGetOwnershipRangeColumn(P, &cStart, NULL));
+  PetscCall(MatGetLocalSize(P, &mFull, &nFull));
+  PetscCall(KeptPositions(rows, rStart, mFull, t->rows, t->droppedRows));
+  PetscCall(KeptPositions(cols, cStart, nFull, t->cols, t->droppedCols));
+  PetscCall(ISGetLocalSize(rows, &m));
+  PetscCall(ISGetLocalSize(cols, &n));
+  PetscCall(ISGetSize(rows, &M));
+  PetscCall(ISGetSize(cols, &N));
+  PetscCall(MatCreateShell(PetscObjectComm((PetscObject)P), m, n, M, N, t, T));
+  PetscCall(MatShellSetOperation(*T, MATOP_MULT, (void (*)(void))TruncatedMult));
+  PetscCall(MatShellSetOperation(*T, MATOP_MULT_ADD, (void (*)(void))TruncatedMultAdd));
+  PetscCall(MatShellSetOperation(*T, MATOP_MULT_TRANSPOSE, (void (*)(void))TruncatedMultTranspose));
+  PetscCall(MatShellSetOperation(*T, MATOP_MULT_TRANSPOSE_ADD, (void (*)(void))TruncatedMultTransposeAdd));
+  PetscCall(MatShellSetOperation(*T, MATOP_DESTROY, (void (*)(void))TruncatedDestroy));
+  PetscFunctionReturn(0);
+}
+
+namespace {
 // Smoothing by one symmetric Gauss-Seidel sweep (SOR, forward then backward, local to each rank) before
 // and after the coarse correction: the V-cycle is then a symmetric operator. Measured against a forward
 // sweep before and a backward one after (also symmetric, half the smoothing work): paper-5.1 N = 512, CR
@@ -279,16 +430,29 @@ PetscErrorCode SetSmoother(PC pc, PetscInt l)
   PetscFunctionReturn(0);
 }
 
-// The Galerkin operator Pt^T Afine Pt of the level below.
+// The Galerkin operator Pt^T Afine Pt of the level below. The product's symbolic phase first reserves
+// fill x (nnz(A) + nnz(P)) column indices (PETSc's default fill 2), sized for a product as large as its
+// factors, where this one has a coarse level's rows: 3D CR N = 48, 107 MB reserved for 7 MB of entries,
+// the largest allocation of the solve. The reservation here is 3 times a row of Afine for each coarse
+// DOF; the product grows it where that is short (the same product either way).
 PetscErrorCode GalerkinOperator(Mat Afine, Mat Pt, Mat *Ac)
 {
+  MatInfo  a, p;
+  PetscInt rows, cols;
   PetscFunctionBeginUser;
+  PetscCall(MatGetInfo(Afine, MAT_GLOBAL_SUM, &a));
+  PetscCall(MatGetInfo(Pt, MAT_GLOBAL_SUM, &p));
+  PetscCall(MatGetSize(Afine, &rows, NULL));
+  PetscCall(MatGetSize(Pt, NULL, &cols));
+  const PetscReal expected = 3 * a.nz_used / PetscMax(rows, 1) * cols;
   PetscCall(MatProductCreate(Afine, Pt, NULL, Ac));
   PetscCall(MatProductSetType(*Ac, MATPRODUCT_PtAP));
   PetscCall(MatProductSetFill(*Ac, PETSC_DEFAULT));
-  PetscCall(MatProductSetFromOptions(*Ac));
+  PetscCall(MatProductSetFromOptions(*Ac)); // in parallel PETSc picks its algorithm by the fill: the default's choice
+  PetscCall(MatProductSetFill(*Ac, PetscMin(2.0, expected / PetscMax(a.nz_used + p.nz_used, 1.0))));
   PetscCall(MatProductSymbolic(*Ac));
   PetscCall(MatProductNumeric(*Ac));
+  PetscCall(MatProductClear(*Ac)); // computed once: its references to both factors and its work data go
   PetscCall(MatSetOption(*Ac, MAT_SYMMETRIC, PETSC_TRUE));
   PetscFunctionReturn(0);
 }
@@ -313,8 +477,10 @@ PetscErrorCode HierarchyMGSetUp(PC pc, const Hierarchy &h, Mat A, IS inactive)
   for (PetscInt l = levels - 1; l > 0; --l) {
     Mat Pt, Ac;
     PetscCall(TruncateTransfer(h.P[l - 1], rows, &cols, &Pt));
-    PetscCall(PCMGSetInterpolation(pc, l, Pt));
     PetscCall(GalerkinOperator(Afine, Pt, &Ac));
+    PetscCall(MatDestroy(&Pt)); // the copy served the product; the cycle applies the transfer through P
+    PetscCall(TruncatedTransferShell(h.P[l - 1], rows, cols, &Pt));
+    PetscCall(PCMGSetInterpolation(pc, l, Pt));
     PetscCall(PCMGGetSmoother(pc, l - 1, &ksp));
     PetscCall(KSPSetOperators(ksp, Ac, Ac));
     PetscCall(SetSmoother(pc, l));
@@ -334,6 +500,7 @@ PetscErrorCode HierarchyMGSetUp(PC pc, const Hierarchy &h, Mat A, IS inactive)
   PetscCall(PCSetOperators(pc, A, A));
   PetscCall(PCSetFromOptions(pc));
   PetscCall(PCSetUp(pc));
+  ReleaseFreedMemory(); // the copies of the transfers and the products' work data, before the solve needs the memory
   PetscFunctionReturn(0);
 }
 

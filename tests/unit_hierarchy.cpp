@@ -195,6 +195,9 @@ static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
     PetscCall(VecNorm(ref, NORM_INFINITY, &err));
     ck.Check(size > 0.5 && err < 1e-13 * size, tag + Format(" level %d: P uH equals the transfer of transfer.h off Gamma_D", (int)l), "max error %.3e of %.3e", (double)err, (double)size);
     for (Vec *v : {&uH, &uh, &ref}) PetscCall(VecDestroy(v));
+    MatInfo info;
+    PetscCall(MatGetInfo(h.P[l - 1], MAT_GLOBAL_SUM, &info));
+    ck.Check(info.nz_allocated == info.nz_used, tag + Format(" level %d: P is allocated to its entries", (int)l), "%.0f allocated for %.0f entries", info.nz_allocated, info.nz_used);
   }
 
   // The multigrid's hierarchy, as nested iteration builds it: P1 the transfers above; CR P1 on every level
@@ -311,6 +314,47 @@ static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
     ck.Check(r[2] < 1e-14, tag + " the truncated transfer equals P on the inactive rows", "max difference %.3e", (double)r[2]);
     ck.Check(r[3] == 0, tag + " every dropped coarse column is zero on the inactive rows", "max %.3e", (double)r[3]);
     for (Vec *v : {&xc, &xk, &y, &ref}) PetscCall(VecDestroy(v));
+  }
+
+  // 2b. The shell that the multigrid applies instead of the copy Pt gives Pt's results bit for bit, in
+  // every operation the cycle uses, and again on a second round (its work vectors stay zero outside the
+  // kept rows and columns between uses).
+  {
+    Mat       T;
+    Vec       xc, xf, w, a, b, ac, bc;
+    PetscBool same[4] = {PETSC_TRUE, PETSC_TRUE, PETSC_TRUE, PETSC_TRUE};
+    PetscCall(TruncatedTransferShell(mg.P.back(), inactive, kept, &T));
+    PetscCall(MatCreateVecs(Pt, &xc, &xf));
+    for (Vec *v : {&w, &a, &b}) PetscCall(VecDuplicate(xf, v));
+    PetscCall(VecDuplicate(xc, &ac));
+    PetscCall(VecDuplicate(xc, &bc));
+    for (PetscInt round = 1; round <= 2; ++round) {
+      PetscBool eq;
+      PetscCall(VecSetRandom(xc, NULL));
+      PetscCall(VecSetRandom(xf, NULL));
+      PetscCall(VecSetRandom(w, NULL));
+      PetscCall(MatMult(Pt, xc, a));
+      PetscCall(MatMult(T, xc, b));
+      PetscCall(VecEqual(a, b, &eq));
+      same[0] = (PetscBool)(same[0] && eq);
+      PetscCall(VecCopy(w, a));
+      PetscCall(VecCopy(w, b));
+      PetscCall(MatMultAdd(Pt, xc, a, a)); // in place, as the cycle interpolates
+      PetscCall(MatMultAdd(T, xc, b, b));
+      PetscCall(VecEqual(a, b, &eq));
+      same[1] = (PetscBool)(same[1] && eq);
+      PetscCall(MatMultTranspose(Pt, xf, ac));
+      PetscCall(MatMultTranspose(T, xf, bc));
+      PetscCall(VecEqual(ac, bc, &eq));
+      same[2] = (PetscBool)(same[2] && eq);
+      PetscCall(MatMultTransposeAdd(Pt, xf, xc, ac));
+      PetscCall(MatMultTransposeAdd(T, xf, xc, bc));
+      PetscCall(VecEqual(ac, bc, &eq));
+      same[3] = (PetscBool)(same[3] && eq);
+    }
+    ck.Check(same[0] && same[1] && same[2] && same[3], tag + " the entry-free truncated transfer gives the copy's results bit for bit", "Mult %d MultAdd %d MultTranspose %d MultTransposeAdd %d", (int)same[0], (int)same[1], (int)same[2], (int)same[3]);
+    for (Vec *v : {&xc, &xf, &w, &a, &b, &ac, &bc}) PetscCall(VecDestroy(v));
+    PetscCall(MatDestroy(&T));
   }
 
   // 3. The Galerkin coarse operators of the preconditioner on every coarser level equal R A P.

@@ -64,6 +64,10 @@ struct Hierarchy {
 // nonnegative, as those of the multigrid's transfers are (P1 basis values, vertex means): the CR-to-CR
 // prolongation has negative ones and is not truncated. Collective.
 PetscErrorCode TruncateTransfer(Mat P, IS rows, IS *cols, Mat *Pt);
+// The same Pt as TruncateTransfer's (rows, cols as it returns them) without a copy of P's entries: a shell
+// that applies P on vectors zero outside them (Mult, MultAdd, MultTranspose, MultTransposeAdd, with the
+// results of the AIJ copy bit for bit). It keeps P and a work vector of each of P's sizes. Collective.
+PetscErrorCode TruncatedTransferShell(Mat P, IS rows, IS cols, Mat *T);
 
 // Makes pc a symmetric multigrid V-cycle for A_II = A (the inactive-set block; inactive: its rows, owned
 // global indices of the finest level of h, ascending) with the truncated transfers of h and Galerkin
