@@ -55,12 +55,8 @@ bool ComputeCellGeometry(PetscInt dim, const PetscReal *X, CellGeometry &g)
   const PetscReal h = std::sqrt(h2);
   if (!std::isfinite(det) || !(std::fabs(det) > 1e-12 * (dim == 2 ? h * h : h * h * h))) return false;
   g.volume = std::fabs(det) / (dim == 2 ? 2.0 : 6.0);
-  for (PetscInt d = 0; d < dim; ++d) {
-    g.gradLambda[0][d] = 0;
-    g.centroid[d]      = 0;
-    for (PetscInt k = 0; k <= dim; ++k) g.centroid[d] += X[k * dim + d];
-    g.centroid[d] *= 1.0 / (dim + 1);
-  }
+  SimplexCentroid(dim, X, g.centroid);
+  for (PetscInt d = 0; d < dim; ++d) g.gradLambda[0][d] = 0;
   for (PetscInt k = 1; k <= dim; ++k)
     for (PetscInt d = 0; d < dim; ++d) {
       g.gradLambda[k][d] = inv[k - 1][d];
