@@ -15,12 +15,17 @@ namespace signorini {
 // (the branch not taken may produce NaN or inf, which is discarded, as muparser never computes it).
 struct Expression::Program {
   static constexpr int kBlock = 128;
+  // Operations beyond muparser's: its max and min of any number of arguments, inline (muparser calls
+  // them through a pointer, with the arguments gathered into an array), and an integer power 2, 3 or 4
+  // of a value as the product muparser itself uses for a variable's (x^3: x * x * x), where muparser calls
+  // std::pow for any other base. The power differs from std::pow by round-off (at most about 1 ulp).
+  enum Extra { kMax = mu::cmUNKNOWN + 1, kMin, kPowInt };
   struct Op {
-    mu::ECmdCode               cmd;
+    int                        cmd;  // an mu::ECmdCode or an Extra
     int                        var;  // cmVAR, cmVARPOW*, cmVARMUL: 0..2 for x, y, z, 3 for cell_set
     double                     a, b; // cmVAL: b; cmVARMUL: var * a + b
     mu::generic_callable_type  fun;  // cmFUNC
-    int                        argc; // cmFUNC: number of arguments, negative for a variable number
+    int                        argc; // cmFUNC: number of arguments, negative for a variable number; kPowInt: the power
   };
   std::vector<Op>             ops;
   int                         slots = 0;     // stack slots, slot 0 unused as in muparser
@@ -29,7 +34,8 @@ struct Expression::Program {
   // Null for byte code with an operation or a stack layout this evaluator does not know (the point-wise
   // path then serves the expression): string functions, bulk callbacks, assignments, multiple results
   // inside a branch.
-  static std::unique_ptr<Program> Translate(const mu::ParserByteCode &code, const double *const variables[4], int components)
+  // maxMin: the addresses of muparser's max and min functions.
+  static std::unique_ptr<Program> Translate(const mu::ParserByteCode &code, const double *const variables[4], const void *const maxMin[2], int components)
   {
     auto               p  = std::make_unique<Program>();
     const mu::SToken  *t  = code.GetBase();
@@ -38,8 +44,17 @@ struct Expression::Program {
     for (; t->Cmd != mu::cmEND; ++t) {
       Op op{t->Cmd, -1, 0, 0, {}, 0};
       switch (t->Cmd) {
+      case mu::cmPOW: // the exponent a constant 2, 3 or 4: replaces the constant's operation
+        if (!p->ops.empty() && p->ops.back().cmd == mu::cmVAL && (p->ops.back().b == 2 || p->ops.back().b == 3 || p->ops.back().b == 4)) {
+          op.cmd  = kPowInt;
+          op.argc = (int)p->ops.back().b;
+          p->ops.pop_back();
+          if (--sp < 1) return nullptr;
+          break;
+        }
+        [[fallthrough]];
       case mu::cmLE: case mu::cmGE: case mu::cmNEQ: case mu::cmEQ: case mu::cmLT: case mu::cmGT:
-      case mu::cmADD: case mu::cmSUB: case mu::cmMUL: case mu::cmDIV: case mu::cmPOW: case mu::cmLAND: case mu::cmLOR:
+      case mu::cmADD: case mu::cmSUB: case mu::cmMUL: case mu::cmDIV: case mu::cmLAND: case mu::cmLOR:
         if (sp < 2) return nullptr;
         --sp;
         break;
@@ -70,6 +85,8 @@ struct Expression::Program {
         op.fun = t->Fun.cb, op.argc = t->Fun.argc;
         const int n = op.argc < 0 ? -op.argc : op.argc;
         if (op.argc > 3 || sp < n || (op.argc < 0 && n < 1)) return nullptr;
+        if (op.argc < 0 && (void *)op.fun._pRawFun == maxMin[0]) op.cmd = kMax;
+        if (op.argc < 0 && (void *)op.fun._pRawFun == maxMin[1]) op.cmd = kMin;
         sp += 1 - n;
         maxArgs = std::max(maxArgs, n);
         break;
@@ -128,8 +145,29 @@ struct Expression::Program {
       case mu::cmVARPOW4: for (int j = 0; j < m; ++j) s[kBlock + j] = v[j] * v[j] * v[j] * v[j]; ++sp; break;
       case mu::cmVARMUL: for (int j = 0; j < m; ++j) s[kBlock + j] = v[j] * op.a + op.b; ++sp; break;
       case mu::cmFUNC: Function(op, sp, m); break;
+      case kMax: case kMin: MaxMin(op, sp, m); break;
+      case kPowInt: {
+        double *b = s;
+        if (op.argc == 2) for (int j = 0; j < m; ++j) b[j] = b[j] * b[j];
+        else if (op.argc == 3) for (int j = 0; j < m; ++j) b[j] = b[j] * b[j] * b[j];
+        else for (int j = 0; j < m; ++j) b[j] = b[j] * b[j] * b[j] * b[j];
+        break;
+      }
       default: throw mu::ParserError(mu::ecINTERNAL_ERROR); // Translate admits no other operation
       }
+    }
+  }
+
+  // muparser's max or min of -argc arguments in slots sp + argc + 1 .. sp, in its order of comparisons.
+  void MaxMin(const Op &op, int &sp, int m) const
+  {
+    const int n = -op.argc;
+    sp         += 1 - n;
+    double *a   = &stack[(size_t)sp * kBlock];
+    for (int j = 0; j < m; ++j) {
+      double r = a[j];
+      for (int k = 0; k < n; ++k) r = op.cmd == kMax ? std::max(r, a[k * kBlock + j]) : std::min(r, a[k * kBlock + j]);
+      a[j] = r;
     }
   }
 
@@ -183,8 +221,10 @@ PetscErrorCode Expression::Create(MPI_Comm comm, const std::string &option, cons
       e.constant_ = true;
       for (int c = 0; c < n && c < 3; ++c) e.value_[c] = v[c];
     } else {
-      const double *variables[4] = {&e.xyz_[0], &e.xyz_[1], &e.xyz_[2], &e.cellSet_};
-      e.program_                 = Program::Translate(e.parser_->GetByteCode(), variables, components);
+      const double        *variables[4] = {&e.xyz_[0], &e.xyz_[1], &e.xyz_[2], &e.cellSet_};
+      const mu::funmap_type &functions  = e.parser_->GetFunDef();
+      const void          *maxMin[2]    = {functions.count("max") ? functions.at("max").GetAddr() : nullptr, functions.count("min") ? functions.at("min").GetAddr() : nullptr};
+      e.program_                        = Program::Translate(e.parser_->GetByteCode(), variables, maxMin, components);
     }
   } catch (mu::Parser::exception_type &err) {
     std::string what = err.GetMsg();

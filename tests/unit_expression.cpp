@@ -1,12 +1,15 @@
 // Unit tests of Expression::EvalBatch, the block evaluation of the data expressions: at points that fill
-// several blocks and a partial one, with a different cell_set per point, its values must be the values of
-// an independent muparser Parser evaluated point by point, bit for bit, and those of Expression::Eval; a
-// constant expression gives its one value everywhere, and a non-finite value is reported at its point.
+// several blocks and a partial one, with a different cell_set per point, its values must be those of
+// Expression::Eval bit for bit, and those of an independent muparser Parser evaluated point by point: bit
+// for bit, except that an integer power of a value that is not a variable ((x - y)^3) is a product where
+// muparser calls std::pow, which differs by round-off (at most 4 ulp checked); a constant expression gives
+// its one value everywhere, and a non-finite value is reported at its point.
 #include "signorini/expression.h"
 #include "unit_check.h"
 
 #include <muParser.h>
 
+#include <cfloat>
 #include <cstring>
 #include <memory>
 #include <string>
@@ -37,10 +40,13 @@ static std::vector<double> Reference(const std::string &text, int dim, const std
   return out;
 }
 
-static bool Same(const std::vector<double> &a, const std::vector<double> &b, size_t *where)
+// a == b bit for bit, or within `ulps` units in the last place of b.
+static bool Same(const std::vector<double> &a, const std::vector<double> &b, size_t *where, double ulps = 0)
 {
-  for (size_t i = 0; i < a.size(); ++i)
-    if (std::memcmp(&a[i], &b[i], sizeof(double))) return *where = i, false;
+  for (size_t i = 0; i < a.size(); ++i) {
+    const bool close = std::fabs(a[i] - b[i]) <= ulps * std::ldexp(DBL_EPSILON, std::ilogb(b[i]));
+    if (std::memcmp(&a[i], &b[i], sizeof(double)) && !close) return *where = i, false;
+  }
   return a.size() == b.size();
 }
 
@@ -51,11 +57,12 @@ int main(int argc, char **argv)
   struct Case {
     const char *text;
     int         components;
+    bool        powers = false; // an integer power of a value that is not a variable
   };
   const Case cases[] = {
     {"6.24 * (z * max(0.4 + 0.2 * y - x, 0) - max(x - 0.4 - 0.2 * y, 0))", 1},
-    {"max(x - 0.4 - 0.2 * y, 0)^3 - z * max(0.4 + 0.2 * y - x, 0)^3", 1},
-    {"3 * max(x - 0.4 - 0.2 * y, 0)^2 + 3 * z * max(0.4 + 0.2 * y - x, 0)^2, -0.6 * max(x - 0.4 - 0.2 * y, 0)^2, -max(0.4 + 0.2 * y - x, 0)^3", 3},
+    {"max(x - 0.4 - 0.2 * y, 0)^3 - z * max(0.4 + 0.2 * y - x, 0)^3", 1, true},
+    {"3 * max(x - 0.4 - 0.2 * y, 0)^2 + 3 * z * max(0.4 + 0.2 * y - x, 0)^2, -0.6 * max(x - 0.4 - 0.2 * y, 0)^2, -max(0.4 + 0.2 * y - x, 0)^3", 3, true},
     {"2*pi*sin(2*pi*x)", 1},
     {"(x < 0.3 ? -1 : (x > 0.7 ? 1 : (y < 0.5 ? 0.2 : -0.2))) * (3 * x^2 + y^3 + z^4)", 1},
     {"cell_set == 2 ? 10 : (cell_set == 1 && x > 0.5 ? 3 : 1)", 1},
@@ -63,6 +70,7 @@ int main(int argc, char **argv)
     {"min(x, y, z, 0.5) + sum(x, 2*y, 3*z) / avg(1, x + 1) - (x || y < 0.2) + (z >= 0.3 && x != y) * 2", 1},
     {"-x^2 + 2 * x * y - y / (1 + z) + x^2 * 3 + 1e-3 * x, y^2 - x, 4 * z - 1", 3},
     {"x > 0.5 ? sin(x) : log(x)", 1},
+    {"(x + y)^2.5 - (1 + z)^(-1) + 2^x + (y - x)^4 * (x + 1)^2", 1, true},
   };
   // 300 points: two full blocks of 128 and a partial one; coordinates in [0, 1), cell sets 0, 1, 2.
   const int             n = 300;
@@ -86,8 +94,8 @@ int main(int argc, char **argv)
       size_t                    at   = 0;
       const std::string         name = std::string(c.text).substr(0, 40) + signorini::Format(" (%dD)", dim);
       check.Check(ok && error.empty(), "finite: " + name, "%s", error.c_str());
-      check.Check(Same(batch, ref, &at), "block = muparser point by point: " + name, "entry %zu: %.17g vs %.17g", at, batch[at], ref[at]);
-      check.Check(Same(single, ref, &at), "Eval = muparser point by point: " + name, "entry %zu: %.17g vs %.17g", at, single[at], ref[at]);
+      check.Check(Same(batch, single, &at), "block = Eval point by point: " + name, "entry %zu: %.17g vs %.17g", at, batch[at], single[at]);
+      check.Check(Same(batch, ref, &at, c.powers ? 4 : 0), "block = muparser point by point: " + name, "entry %zu: %.17g vs %.17g", at, batch[at], ref[at]);
     }
   }
   {
