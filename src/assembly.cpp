@@ -223,20 +223,32 @@ static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, 
   PetscFunctionReturn(0);
 }
 
+// The points of the face rule on boundary face bf (x, rule.Size() * dim values), and their barycentric
+// coordinates in its cell (lambda, rule.Size() * (dim + 1) values).
+static void FacePoints(const Space &space, const BoundaryFace &bf, const Quadrature &rule, PetscReal *lambda, PetscReal *x)
+{
+  const Space::Coords X = space.X(bf.cell);
+  for (PetscInt q = 0; q < rule.Size(); ++q) {
+    space.FaceToCell(bf, rule.Point(q), &lambda[q * (space.dim + 1)]);
+    SimplexPoint(space.dim, X, &lambda[q * (space.dim + 1)], &x[q * space.dim]);
+  }
+}
+
 // Neumann term: integral of g * phi_i over the faces of Gamma_N, with the face rule mapped into the cell.
 static void AssembleNeumann(const Space &space, const Problem &problem, const System &sys, PetscScalar *load, LoadRange &range, std::string &error)
 {
-  PetscReal lambda[4], x[3];
+  const PetscInt         nq = sys.faceRule.Size(), dim = space.dim;
+  std::vector<PetscReal> lambda(nq * (dim + 1)), x(nq * dim), gx(nq);
   for (const BoundaryFace &bf : space.boundary) {
     if (std::find(problem.neumann.begin(), problem.neumann.end(), bf.part) == problem.neumann.end()) continue;
     const PetscReal area = space.FaceMeasure(bf);
+    FacePoints(space, bf, sys.faceRule, lambda.data(), x.data());
     problem.g->SetCellSet(space.CellSet(bf.cell)); // a boundary face has one cell
-    for (PetscInt q = 0; q < sys.faceRule.Size(); ++q) {
-      space.FaceToCell(bf, sys.faceRule.Point(q), lambda);
-      space.Point(bf.cell, lambda, x);
-      const PetscReal gx = problem.g->Scalar(x, space.dim, error), gq = gx * sys.faceRule.weights[q] * area;
-      range.Record(*problem.g, gx, gq, x, space.dim);
-      for (PetscInt i = 0; i < space.Nb(); ++i) load[space.Dofs(bf.cell)[i]] += gq * space.BasisValue(bf.cell, i, lambda);
+    problem.g->EvalBatch(nq, x.data(), dim, nullptr, gx.data(), error);
+    for (PetscInt q = 0; q < nq; ++q) {
+      const PetscReal gq = gx[q] * sys.faceRule.weights[q] * area;
+      range.Record(*problem.g, gx[q], gq, &x[q * dim], dim);
+      for (PetscInt i = 0; i < space.Nb(); ++i) load[space.Dofs(bf.cell)[i]] += gq * space.BasisValue(bf.cell, i, &lambda[q * (dim + 1)]);
     }
   }
 }
@@ -250,15 +262,14 @@ static void DirichletValues(const Space &space, const Problem &problem, const Sy
     });
     return;
   }
-  PetscReal lambda[4], x[3];
+  const PetscInt         nq = sys.faceRule.Size();
+  std::vector<PetscReal> lambda(nq * (space.dim + 1)), x(nq * space.dim), ux(nq);
   for (const BoundaryFace &bf : space.boundary) {
     if (space.kindLocal[bf.dof] != kDirichlet) continue;
+    FacePoints(space, bf, sys.faceRule, lambda.data(), x.data());
+    problem.uD->EvalBatch(nq, x.data(), space.dim, nullptr, ux.data(), error);
     PetscReal mean = 0;
-    for (PetscInt q = 0; q < sys.faceRule.Size(); ++q) {
-      space.FaceToCell(bf, sys.faceRule.Point(q), lambda);
-      space.Point(bf.cell, lambda, x);
-      mean += sys.faceRule.weights[q] * problem.uD->Scalar(x, space.dim, error);
-    }
+    for (PetscInt q = 0; q < nq; ++q) mean += sys.faceRule.weights[q] * ux[q];
     u[bf.dof] = mean;
   }
 }

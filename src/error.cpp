@@ -24,6 +24,7 @@ struct ExactBlock {
   static constexpr PetscInt kCells = 32;
   std::vector<PetscReal>    x, u, grad; // point q of block cell i: x[(i * nq + q) * dim], u[i * nq + q], grad[(i * nq + q) * dim]
   std::vector<PetscInt>     sets;
+  Space::Coords             X[kCells];  // the vertices of block cell i
   void Evaluate(const Space &space, const Problem &problem, const Quadrature &rule, PetscInt c0, PetscInt m, std::string &error)
   {
     const PetscInt nq = rule.Size(), dim = space.dim, n = m * nq;
@@ -32,8 +33,8 @@ struct ExactBlock {
     grad.resize(kCells * nq * dim);
     sets.resize(kCells * nq);
     for (PetscInt i = 0; i < m; ++i) {
-      const Space::Coords X = space.X(c0 + i);
-      for (PetscInt q = 0; q < nq; ++q) SimplexPoint(dim, X, rule.Point(q), &x[(i * nq + q) * dim]);
+      X[i] = space.X(c0 + i);
+      for (PetscInt q = 0; q < nq; ++q) SimplexPoint(dim, X[i], rule.Point(q), &x[(i * nq + q) * dim]);
       std::fill_n(&sets[i * nq], nq, space.CellSet(c0 + i));
     }
     problem.exact->EvalBatch(n, x.data(), dim, sets.data(), u.data(), error);
@@ -62,7 +63,7 @@ PetscErrorCode ErrorAgainstExact(const Space &space, const Problem &problem, con
     for (PetscInt i = 0; i < m; ++i) {
       const PetscInt c = c0 + i;
       CellGeometry   g;
-      ComputeCellGeometry(dim, space.X(c), g);
+      ComputeCellGeometry(dim, block.X[i], g);
       // u_h is affine on the cell: its gradient is constant.
       PetscReal gradh[3];
       space.Grad(c, a, g, gradh);

@@ -26,8 +26,10 @@ struct CellGeometry {
   PetscReal gradLambda[4][3]; // gradients of the barycentric coordinates
   PetscReal centroid[3];
 };
-// Returns false for a degenerate cell.
+// Returns false for a degenerate cell (and leaves g unset).
 bool ComputeCellGeometry(PetscInt dim, const PetscReal *X, CellGeometry &g);
+// Whether the simplex with vertices X is not degenerate: ComputeCellGeometry's verdict without the geometry.
+bool SimplexIsValid(PetscInt dim, const PetscReal *X);
 // The centroid of the simplex with vertices X (the mean of the vertices).
 inline void SimplexCentroid(PetscInt dim, const PetscReal *X, PetscReal *x)
 {
