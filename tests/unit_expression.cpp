@@ -71,6 +71,7 @@ int main(int argc, char **argv)
     {"-x^2 + 2 * x * y - y / (1 + z) + x^2 * 3 + 1e-3 * x, y^2 - x, 4 * z - 1", 3},
     {"x > 0.5 ? sin(x) : log(x)", 1},
     {"(x + y)^2.5 - (1 + z)^(-1) + 2^x + (y - x)^4 * (x + 1)^2", 1, true},
+    {"y = 2 * x, y + z", 2}, // an assignment: the block evaluation leaves it to muparser, point by point
   };
   // 300 points: two full blocks of 128 and a partial one; coordinates in [0, 1), cell sets 0, 1, 2.
   const int             n = 300;
