@@ -26,6 +26,7 @@ struct Expression::Program {
     double                     a, b; // cmVAL: b; cmVARMUL: var * a + b
     mu::generic_callable_type  fun;  // cmFUNC
     int                        argc; // cmFUNC: number of arguments, negative for a variable number; kPowInt: the power
+    bool                       constant = false; // binary operation, kMax, kMin: the last operand is b, not a slot
   };
   std::vector<Op>             ops;
   int                         slots = 0;     // stack slots, slot 0 unused as in muparser
@@ -33,8 +34,7 @@ struct Expression::Program {
 
   // Null for byte code with an operation or a stack layout this evaluator does not know (the point-wise
   // path then serves the expression): string functions, bulk callbacks, assignments, multiple results
-  // inside a branch.
-  // maxMin: the addresses of muparser's max and min functions.
+  // inside a branch. maxMin: the addresses of muparser's max and min functions.
   static std::unique_ptr<Program> Translate(const mu::ParserByteCode &code, const double *const variables[4], const void *const maxMin[2], int components)
   {
     auto               p  = std::make_unique<Program>();
@@ -57,6 +57,7 @@ struct Expression::Program {
       case mu::cmADD: case mu::cmSUB: case mu::cmMUL: case mu::cmDIV: case mu::cmLAND: case mu::cmLOR:
         if (sp < 2) return nullptr;
         --sp;
+        Fold(*p, op);
         break;
       case mu::cmIF: // the condition stays in its slot; the branches take the next two
         if (sp < 1) return nullptr;
@@ -88,6 +89,7 @@ struct Expression::Program {
         if (op.argc < 0 && (void *)op.fun._pRawFun == maxMin[0]) op.cmd = kMax;
         if (op.argc < 0 && (void *)op.fun._pRawFun == maxMin[1]) op.cmd = kMin;
         sp += 1 - n;
+        if (op.cmd != mu::cmFUNC && n > 1) Fold(*p, op);
         maxArgs = std::max(maxArgs, n);
         break;
       }
@@ -104,10 +106,25 @@ struct Expression::Program {
     return p;
   }
 
-  template <class F>
-  static void Binary(double *a, const double *b, int m, F f)
+  // An operation whose last operand is a constant (x - 0.4, max(x, 0)) takes the constant from the op
+  // instead of a slot the constant's own operation would fill: the constant's op is dropped.
+  static void Fold(Program &p, Op &op)
   {
-    for (int j = 0; j < m; ++j) a[j] = f(a[j], b[j]);
+    if (p.ops.empty() || p.ops.back().cmd != mu::cmVAL) return;
+    op.constant = true;
+    op.b        = p.ops.back().b;
+    p.ops.pop_back();
+  }
+
+  // a = f(a, b) over the block: b the next slot, or op.b.
+  template <class F>
+  static void Binary(const Op &op, double *a, int m, F f)
+  {
+    const double *b = a + kBlock, c = op.b;
+    if (op.constant)
+      for (int j = 0; j < m; ++j) a[j] = f(a[j], c);
+    else
+      for (int j = 0; j < m; ++j) a[j] = f(a[j], b[j]);
   }
 
   // Runs the program on the first m entries of vars; the results are in slots 1..components.
@@ -117,20 +134,23 @@ struct Expression::Program {
     for (const Op &op : ops) {
       double       *s = &stack[(size_t)sp * kBlock], *top = s - kBlock; // s: slot sp; top: slot sp - 1
       const double *v = op.var >= 0 ? &vars[op.var * kBlock] : nullptr;
+      // a binary operation's result replaces its first operand: slot sp - 1, or sp with a constant second
+      double       *a = op.constant ? s : top;
+      if (op.cmd < mu::cmASSIGN && !op.constant) --sp;
       switch (op.cmd) {
-      case mu::cmLE: Binary(top, s, m, [](double x, double y) -> double { return x <= y; }); --sp; break;
-      case mu::cmGE: Binary(top, s, m, [](double x, double y) -> double { return x >= y; }); --sp; break;
-      case mu::cmNEQ: Binary(top, s, m, [](double x, double y) -> double { return x != y; }); --sp; break;
-      case mu::cmEQ: Binary(top, s, m, [](double x, double y) -> double { return x == y; }); --sp; break;
-      case mu::cmLT: Binary(top, s, m, [](double x, double y) -> double { return x < y; }); --sp; break;
-      case mu::cmGT: Binary(top, s, m, [](double x, double y) -> double { return x > y; }); --sp; break;
-      case mu::cmADD: Binary(top, s, m, [](double x, double y) { return x + y; }); --sp; break;
-      case mu::cmSUB: Binary(top, s, m, [](double x, double y) { return x - y; }); --sp; break;
-      case mu::cmMUL: Binary(top, s, m, [](double x, double y) { return x * y; }); --sp; break;
-      case mu::cmDIV: Binary(top, s, m, [](double x, double y) { return x / y; }); --sp; break;
-      case mu::cmPOW: Binary(top, s, m, [](double x, double y) { return mu::MathImpl<double>::Pow(x, y); }); --sp; break;
-      case mu::cmLAND: Binary(top, s, m, [](double x, double y) -> double { return x && y; }); --sp; break;
-      case mu::cmLOR: Binary(top, s, m, [](double x, double y) -> double { return x || y; }); --sp; break;
+      case mu::cmLE: Binary(op, a, m, [](double x, double y) -> double { return x <= y; }); break;
+      case mu::cmGE: Binary(op, a, m, [](double x, double y) -> double { return x >= y; }); break;
+      case mu::cmNEQ: Binary(op, a, m, [](double x, double y) -> double { return x != y; }); break;
+      case mu::cmEQ: Binary(op, a, m, [](double x, double y) -> double { return x == y; }); break;
+      case mu::cmLT: Binary(op, a, m, [](double x, double y) -> double { return x < y; }); break;
+      case mu::cmGT: Binary(op, a, m, [](double x, double y) -> double { return x > y; }); break;
+      case mu::cmADD: Binary(op, a, m, [](double x, double y) { return x + y; }); break;
+      case mu::cmSUB: Binary(op, a, m, [](double x, double y) { return x - y; }); break;
+      case mu::cmMUL: Binary(op, a, m, [](double x, double y) { return x * y; }); break;
+      case mu::cmDIV: Binary(op, a, m, [](double x, double y) { return x / y; }); break;
+      case mu::cmPOW: Binary(op, a, m, [](double x, double y) { return mu::MathImpl<double>::Pow(x, y); }); break;
+      case mu::cmLAND: Binary(op, a, m, [](double x, double y) -> double { return x && y; }); break;
+      case mu::cmLOR: Binary(op, a, m, [](double x, double y) -> double { return x || y; }); break;
       case mu::cmIF: case mu::cmELSE: break;
       case mu::cmENDIF: { // slots sp - 2, sp - 1, sp: condition, then, else
         double *c = s - 2 * kBlock;
@@ -158,16 +178,23 @@ struct Expression::Program {
     }
   }
 
-  // muparser's max or min of -argc arguments in slots sp + argc + 1 .. sp, in its order of comparisons.
+  // muparser's max or min of -argc arguments in its order of comparisons: in the top -argc slots, or
+  // the last one op.b and the others in the top -argc - 1 slots.
   void MaxMin(const Op &op, int &sp, int m) const
   {
-    const int n = -op.argc;
-    sp         += 1 - n;
+    const int n = -op.argc, inSlots = op.constant ? n - 1 : n;
+    sp         += 1 - inSlots;
     double *a   = &stack[(size_t)sp * kBlock];
+    if (op.cmd == kMax) MaxMinLoop(a, inSlots, op.constant, op.b, m, [](double x, double y) { return std::max(x, y); });
+    else MaxMinLoop(a, inSlots, op.constant, op.b, m, [](double x, double y) { return std::min(x, y); });
+  }
+  template <class F>
+  static void MaxMinLoop(double *a, int inSlots, bool constant, double c, int m, F f)
+  {
     for (int j = 0; j < m; ++j) {
       double r = a[j];
-      for (int k = 0; k < n; ++k) r = op.cmd == kMax ? std::max(r, a[k * kBlock + j]) : std::min(r, a[k * kBlock + j]);
-      a[j] = r;
+      for (int k = 0; k < inSlots; ++k) r = f(r, a[k * kBlock + j]);
+      a[j] = constant ? f(r, c) : r;
     }
   }
 

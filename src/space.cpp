@@ -24,7 +24,7 @@ PetscErrorCode ElementFromCommandLine(MPI_Comm comm, Element &e)
 
 // J = [X_1 - X_0, ..., X_d - X_0] and its determinant; false for a degenerate simplex: |det| tiny relative
 // to the cell's size (round-off leaves collinear vertices a det ~ 1e-17).
-static bool Jacobian(PetscInt dim, const PetscReal *X, PetscReal J[3][3], PetscReal &det)
+[[gnu::always_inline]] static inline bool Jacobian(PetscInt dim, const PetscReal *X, PetscReal J[3][3], PetscReal &det)
 {
   for (PetscInt r = 0; r < dim; ++r)
     for (PetscInt k = 0; k < dim; ++k) J[r][k] = X[(k + 1) * dim + r] - X[r];
