@@ -15,11 +15,12 @@ namespace signorini {
 // (the branch not taken may produce NaN or inf, which is discarded, as muparser never computes it).
 struct Expression::Program {
   static constexpr int kBlock = 128;
-  // Operations beyond muparser's: its max and min of any number of arguments, inline (muparser calls
-  // them through a pointer, with the arguments gathered into an array), and an integer power 2, 3 or 4
+  // Operations beyond muparser's: its max and min of any number of arguments and its unary minus, inline
+  // (muparser calls them through a pointer, max and min with the arguments gathered into an array), and
+  // an integer power 2, 3 or 4
   // of a value as the product muparser itself uses for a variable's (x^3: x * x * x), where muparser calls
   // std::pow for any other base. The power differs from std::pow by round-off (at most about 1 ulp).
-  enum Extra { kMax = mu::cmUNKNOWN + 1, kMin, kPowInt };
+  enum Extra { kMax = mu::cmUNKNOWN + 1, kMin, kPowInt, kNegate };
   struct Op {
     int                        cmd;  // an mu::ECmdCode or an Extra
     int                        var;  // cmVAR, cmVARPOW*, cmVARMUL: 0..2 for x, y, z, 3 for cell_set
@@ -88,6 +89,7 @@ struct Expression::Program {
         if (op.argc > 3 || sp < n || (op.argc < 0 && n < 1)) return nullptr;
         if (op.argc < 0 && (void *)op.fun._pRawFun == maxMin[0]) op.cmd = kMax;
         if (op.argc < 0 && (void *)op.fun._pRawFun == maxMin[1]) op.cmd = kMin;
+        if (op.argc == 1 && (void *)op.fun._pRawFun == UnaryMinus()) op.cmd = kNegate;
         sp += 1 - n;
         if (op.cmd != mu::cmFUNC && n > 1) Fold(*p, op);
         maxArgs = std::max(maxArgs, n);
@@ -104,6 +106,22 @@ struct Expression::Program {
     p->vars.resize(4 * kBlock);
     p->args.resize(maxArgs);
     return p;
+  }
+
+  // The address of muparser's unary minus, read from the byte code of "-x" (muparser lists its functions
+  // but not its sign operators).
+  static const void *UnaryMinus()
+  {
+    static const void *address = [] {
+      mu::Parser p;
+      double     x = 0;
+      p.DefineVar("x", &x);
+      p.SetExpr("-x");
+      p.Eval();
+      const mu::SToken *t = p.GetByteCode().GetBase();
+      return t[0].Cmd == mu::cmVAR && t[1].Cmd == mu::cmFUNC && t[1].Fun.argc == 1 ? (const void *)t[1].Fun.cb._pRawFun : nullptr;
+    }();
+    return address;
   }
 
   // An operation whose last operand is a constant (x - 0.4, max(x, 0)) takes the constant from the op
@@ -166,6 +184,7 @@ struct Expression::Program {
       case mu::cmVARMUL: for (int j = 0; j < m; ++j) s[kBlock + j] = v[j] * op.a + op.b; ++sp; break;
       case mu::cmFUNC: Function(op, sp, m); break;
       case kMax: case kMin: MaxMin(op, sp, m); break;
+      case kNegate: for (int j = 0; j < m; ++j) s[j] = -s[j]; break;
       case kPowInt: {
         double *b = s;
         if (op.argc == 2) for (int j = 0; j < m; ++j) b[j] = b[j] * b[j];
