@@ -10,16 +10,17 @@ namespace signorini {
 // muparser's byte code (its reverse Polish program over a value stack) run over a block of points at once:
 // each operation is one loop over the block, so the interpretation costs once per block and the loops are
 // plain arithmetic. The operations are muparser's own, in its order and on the same functions, so every
-// value is the one muparser's Eval gives (unit_expression checks this bit for bit). One difference in how:
-// muparser evaluates only the branch of a ? b : c that is taken; a block takes both and selects per point
-// (the branch not taken may produce NaN or inf, which is discarded, as muparser never computes it).
+// value is the one muparser's Eval gives, bit for bit (unit_expression checks it), but for one operation:
+// an integer power 2, 3 or 4 of a value that is not a variable is the product muparser itself uses for a
+// variable's (x^3 is x * x * x) where muparser calls std::pow; the two differ by round-off (about 1 ulp),
+// and std::pow was half the cost of the error integrals. One difference in how: muparser evaluates only the
+// branch of a ? b : c that is taken; a block takes both and selects per point (the branch not taken may
+// produce NaN or inf, which is discarded, as muparser never computes it).
 struct Expression::Program {
   static constexpr int kBlock = 128;
-  // Operations beyond muparser's: its max and min of any number of arguments and its unary minus, inline
-  // (muparser calls them through a pointer, max and min with the arguments gathered into an array), and
-  // an integer power 2, 3 or 4
-  // of a value as the product muparser itself uses for a variable's (x^3: x * x * x), where muparser calls
-  // std::pow for any other base. The power differs from std::pow by round-off (at most about 1 ulp).
+  // Operations beyond muparser's: that integer power, and its max and min of any number of arguments and
+  // its unary minus inline (muparser calls them through a pointer, max and min with the arguments gathered
+  // into an array).
   enum Extra { kMax = mu::cmUNKNOWN + 1, kMin, kPowInt, kNegate };
   struct Op {
     int                        cmd;  // an mu::ECmdCode or an Extra
@@ -207,14 +208,14 @@ struct Expression::Program {
     if (op.cmd == kMax) MaxMinLoop(a, inSlots, op.constant, op.b, m, [](double x, double y) { return std::max(x, y); });
     else MaxMinLoop(a, inSlots, op.constant, op.b, m, [](double x, double y) { return std::min(x, y); });
   }
+  // In place on the first slot (f(r, r) = r), one loop per argument so that each loop is plain arithmetic.
   template <class F>
   static void MaxMinLoop(double *a, int inSlots, bool constant, double c, int m, F f)
   {
-    for (int j = 0; j < m; ++j) {
-      double r = a[j];
-      for (int k = 0; k < inSlots; ++k) r = f(r, a[k * kBlock + j]);
-      a[j] = constant ? f(r, c) : r;
-    }
+    for (int k = 0; k < inSlots; ++k)
+      for (int j = 0; j < m; ++j) a[j] = f(a[j], a[k * kBlock + j]);
+    if (constant)
+      for (int j = 0; j < m; ++j) a[j] = f(a[j], c);
   }
 
   // A function of argc arguments in slots sp - argc + 1 .. sp; its value replaces the first.

@@ -32,12 +32,12 @@ public:
   // `error` into a collective input error after their loop (see CheckAll).
   bool      Eval(const PetscReal x[], PetscInt dim, PetscReal values[], std::string &error) const;
   PetscReal Scalar(const PetscReal x[], PetscInt dim, std::string &error) const;
-  // Values at n points at once, the same values as n calls of Eval (bit for bit): point i is x[i * dim ..],
-  // its cell_set value cellSets[i] (nullptr: the value of SetCellSet), its values values[i * components ..].
-  // The expression's byte code is run once per block of points, one operation over the whole block, instead
-  // of once per point; this is what set-up and error integrals over millions of points call.
+  // Values at n points at once: point i is x[i * dim ..], its cell_set value cellSets[i] (nullptr: the value
+  // of SetCellSet), its values values[i * components ..]. The expression's byte code is run once per block
+  // of points, one operation over the whole block, instead of once per point: this is what set-up and error
+  // integrals over millions of points call. Eval is EvalBatch of one point, so both give the same values
+  // bit for bit; they agree with muparser's own evaluation to round-off (see expression.cpp).
   bool EvalBatch(PetscInt n, const PetscReal x[], PetscInt dim, const PetscInt cellSets[], PetscReal values[], std::string &error) const;
-  PetscInt Components() const { return components_; }
   // Value of the variable cell_set (the "Cell Sets" value of the cell being integrated; -1 if none).
   void               SetCellSet(PetscInt v) const { cellSet_ = (double)v; }
   const std::string &Text() const { return text_; }
