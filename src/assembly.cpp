@@ -49,21 +49,27 @@ struct LoadRange {
 };
 
 // kappa is taken constant on each cell (its centroid value), so the stiffness integral is exact for
-// coefficients that are piecewise constant on the mesh, including jumps between cell sets.
+// coefficients that are piecewise constant on the mesh, including jumps between cell sets. Evaluated at
+// all centroids at once (EvalBatch), one per cell.
 static PetscErrorCode CellCoefficients(const Space &space, const Problem &problem, System &sys)
 {
   std::string error;
   PetscFunctionBeginUser;
   // A constant kappa (checked positive by ProblemSetUp's evaluation) is one value, not one per cell.
-  const PetscInt n = problem.kappa->IsConstant() ? std::min<PetscInt>(1, space.NumCells()) : space.NumCells();
+  const PetscInt n = problem.kappa->IsConstant() ? std::min<PetscInt>(1, space.NumCells()) : space.NumCells(), dim = space.dim;
+  const PetscInt         block = 1024; // centroids a block at a time: no table of n points
+  std::vector<PetscReal> x(block * dim);
+  std::vector<PetscInt>  sets(block);
   sys.kappa.resize(n);
-  for (PetscInt c = 0; c < n; ++c) {
-    CellGeometry g;
-    ComputeCellGeometry(space.dim, space.X(c), g);
-    problem.kappa->SetCellSet(space.CellSet(c));
-    const PetscReal k = problem.kappa->Scalar(g.centroid, space.dim, error);
-    if (!(k > 0) && error.empty()) error = Format("option -kappa: '%s' is %g <= 0 at (%g, %g, %g); kappa must be positive", problem.kappa->Text().c_str(), (double)k, (double)g.centroid[0], (double)g.centroid[1], space.dim == 3 ? (double)g.centroid[2] : 0.0);
-    sys.kappa[c] = k;
+  for (PetscInt c0 = 0; c0 < n; c0 += block) {
+    const PetscInt m = std::min(block, n - c0);
+    for (PetscInt i = 0; i < m; ++i) {
+      SimplexCentroid(dim, space.X(c0 + i), &x[i * dim]);
+      sets[i] = space.CellSet(c0 + i);
+    }
+    problem.kappa->EvalBatch(m, x.data(), dim, sets.data(), &sys.kappa[c0], error);
+    for (PetscInt i = 0; i < m && error.empty(); ++i)
+      if (!(sys.kappa[c0 + i] > 0)) error = Format("option -kappa: '%s' is %g <= 0 at (%g, %g, %g); kappa must be positive", problem.kappa->Text().c_str(), (double)sys.kappa[c0 + i], (double)x[i * dim], (double)x[i * dim + 1], dim == 3 ? (double)x[i * dim + 2] : 0.0);
   }
   PetscCall(CheckAll(PetscObjectComm((PetscObject)space.dm), error.empty(), error));
   PetscFunctionReturn(0);
@@ -81,13 +87,19 @@ PetscReal SimplexDiameter(PetscInt dim, const PetscReal *X)
   return std::sqrt(h2);
 }
 
-// The one evaluation of f on a cell (CellLoad), the oscillation only when asked for (else 0); range, where
-// given, records the values for the underflow check.
-static void ComputeCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, bool oscillation, LoadRange *range, std::string &error)
+// The points of `rule` in the simplex with vertices X: x[q * dim ..].
+static void RulePoints(PetscInt dim, const PetscReal *X, const Quadrature &rule, PetscReal *x)
+{
+  for (PetscInt q = 0; q < rule.Size(); ++q) SimplexPoint(dim, X, rule.Point(q), &x[q * dim]);
+}
+
+// The load of a cell (CellLoad) from f's values fx at the points x of the load rule (System::cellRule), the
+// oscillation only when asked for (else 0); range, where given, records the values for the underflow check.
+// A constant f needs neither fx nor x.
+static void ComputeCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, const PetscReal *fx, const PetscReal *x, std::vector<PetscReal> &work, CellLoad &load, bool oscillation, LoadRange *range, std::string &error)
 {
   const PetscInt    dim  = space.dim;
   const Quadrature &rule = sys.cellRule;
-  PetscReal         x[3];
   load.oscillation       = 0;
   if (problem.f->IsConstant()) { // one value, no parser, no oscillation
     const PetscReal f = problem.f->Scalar(g.centroid, dim, error), share = f * g.volume / (dim + 1);
@@ -95,16 +107,12 @@ static void ComputeCellLoad(const Space &space, const Problem &problem, const Sy
     if (range) range->Record(*problem.f, f, share, g.centroid, dim);
     return;
   }
-  problem.f->SetCellSet(space.CellSet(c));
-  work.resize(rule.Size());
   PetscReal total = 0;
   for (PetscInt k = 0; k <= dim; ++k) load.moment[k] = 0;
   for (PetscInt q = 0; q < rule.Size(); ++q) {
     const PetscReal *lambda = rule.Point(q);
-    SimplexPoint(dim, X, lambda, x);
-    work[q]            = problem.f->Scalar(x, dim, error);
-    const PetscReal fq = work[q] * rule.weights[q] * g.volume;
-    if (range) range->Record(*problem.f, work[q], fq, x, dim);
+    const PetscReal  fq     = fx[q] * rule.weights[q] * g.volume;
+    if (range) range->Record(*problem.f, fx[q], fq, &x[q * dim], dim);
     total += fq;
     for (PetscInt k = 0; k <= dim; ++k) load.moment[k] += fq * lambda[k];
   }
@@ -112,17 +120,19 @@ static void ComputeCellLoad(const Space &space, const Problem &problem, const Sy
   // ||f - mean||^2 / |T| by the oscillation rule: the load's values where it is that rule.
   const Quadrature &orule = sys.oscCellRule;
   PetscReal         mean  = total / g.volume;
+  const PetscReal  *fo    = fx;
   if (orule.Size() != rule.Size()) {
-    work.resize(orule.Size());
+    work.resize(orule.Size() * (dim + 1));
+    PetscReal *ox = &work[orule.Size()];
+    RulePoints(dim, X, orule, ox);
+    problem.f->SetCellSet(space.CellSet(c));
+    problem.f->EvalBatch(orule.Size(), ox, dim, nullptr, work.data(), error);
     mean = 0;
-    for (PetscInt q = 0; q < orule.Size(); ++q) {
-      SimplexPoint(dim, X, orule.Point(q), x);
-      work[q] = problem.f->Scalar(x, dim, error);
-      mean += orule.weights[q] * work[q];
-    }
+    for (PetscInt q = 0; q < orule.Size(); ++q) mean += orule.weights[q] * work[q];
+    fo = work.data();
   }
   PetscReal dev2 = 0;
-  for (PetscInt q = 0; q < orule.Size(); ++q) dev2 += orule.weights[q] * (work[q] - mean) * (work[q] - mean);
+  for (PetscInt q = 0; q < orule.Size(); ++q) dev2 += orule.weights[q] * (fo[q] - mean) * (fo[q] - mean);
   // Poincare on a convex cell: ||w - w_T||_T <= h_T / pi ||grad w||_T.
   load.oscillation = SimplexDiameter(dim, X) / M_PI * std::sqrt(dev2 * g.volume / sys.Kappa(c));
 }
@@ -130,63 +140,115 @@ static void ComputeCellLoad(const Space &space, const Problem &problem, const Sy
 void GetCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, std::string &error)
 {
   const PetscInt n = space.dim + 2;
-  if (sys.cellLoads.empty()) return ComputeCellLoad(space, problem, sys, c, X, g, work, load, true, nullptr, error);
+  if (sys.cellLoads.empty()) {
+    const PetscInt nq = sys.cellRule.Size();
+    std::vector<PetscReal> fx;
+    if (!problem.f->IsConstant()) {
+      fx.resize(nq * (space.dim + 1));
+      RulePoints(space.dim, X, sys.cellRule, &fx[nq]);
+      problem.f->SetCellSet(space.CellSet(c));
+      problem.f->EvalBatch(nq, &fx[nq], space.dim, nullptr, fx.data(), error);
+    }
+    return ComputeCellLoad(space, problem, sys, c, X, g, fx.data(), fx.data() + nq, work, load, true, nullptr, error);
+  }
   const PetscReal *kept = &sys.cellLoads[c * n];
   std::copy(kept, kept + n - 1, load.moment);
   load.oscillation = kept[n - 1];
 }
 
+// f at the load rule's points of a block of cells, one evaluation of the expression for the whole block.
+namespace {
+struct LoadBlock {
+  static constexpr PetscInt kCells = 64;
+  std::vector<PetscReal>    x, fx; // point q of block cell i at x[(i * nq + q) * dim], its value at fx[i * nq + q]
+  std::vector<PetscInt>     sets;
+  void Evaluate(const Space &space, const Problem &problem, const Quadrature &rule, PetscInt c0, PetscInt m, const Space::Coords *X, std::string &error)
+  {
+    const PetscInt nq = rule.Size(), dim = space.dim;
+    x.resize(kCells * nq * dim);
+    fx.resize(kCells * nq);
+    sets.resize(kCells * nq);
+    for (PetscInt i = 0; i < m; ++i) {
+      RulePoints(dim, X[i], rule, &x[i * nq * dim]);
+      std::fill_n(&sets[i * nq], nq, space.CellSet(c0 + i));
+    }
+    problem.f->EvalBatch(m * nq, x.data(), dim, sets.data(), fx.data(), error);
+  }
+};
+} // namespace
+
 // Cell loop: stiffness into A, f-load into the local load vector, and each cell's load into
-// sys.cellLoads when they are kept.
+// sys.cellLoads when they are kept. Cells go in blocks, f evaluated once per block.
 static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, bool keepLoads, System &sys, PetscScalar *load, LoadRange &range, std::string &error)
 {
-  const PetscInt         nb = space.Nb(), dim = space.dim;
+  const PetscInt         nb = space.Nb(), dim = space.dim, nq = sys.cellRule.Size();
   PetscReal              Ke[16], phi[4][4], vertex[4];
   std::vector<PetscReal> work;
+  Space::Coords          X[LoadBlock::kCells];
+  CellGeometry           g[LoadBlock::kCells];
+  LoadBlock              block;
   PetscFunctionBeginUser;
-  const bool zeroLoad = problem.f->IsZero();
+  const bool zeroLoad = problem.f->IsZero(), evaluate = !zeroLoad && !problem.f->IsConstant();
   for (PetscInt k = 0; k <= dim; ++k) { // phi[i][k] = phi_i(X_k), the same on every cell
     for (PetscInt j = 0; j <= dim; ++j) vertex[j] = j == k;
     for (PetscInt i = 0; i < nb; ++i) phi[i][k] = space.BasisValue(0, i, vertex);
   }
   sys.cellLoads.assign(keepLoads ? space.NumCells() * (dim + 2) : 0, 0.0);
-  for (PetscInt c = 0; c < space.NumCells(); ++c) {
-    CellGeometry        g;
-    CellLoad            cl;
-    const Space::Coords X = space.X(c); // gathered once: every quadrature point needs it
-    ComputeCellGeometry(dim, X, g);
-    ElementStiffness(space, c, sys.Kappa(c), g, Ke);
-    PetscCall(MatSetValuesLocal(sys.A, nb, space.Dofs(c), nb, space.Dofs(c), Ke, ADD_VALUES));
-    if (zeroLoad) continue;
-    ComputeCellLoad(space, problem, sys, c, X, g, work, cl, keepLoads, &range, error);
-    // b_i = int_T f phi_i = sum_k moment_k phi_i(X_k): phi_i is affine.
-    for (PetscInt i = 0; i < nb; ++i) {
-      PetscReal bi = 0;
-      for (PetscInt k = 0; k <= dim; ++k) bi += cl.moment[k] * phi[i][k];
-      load[space.Dofs(c)[i]] += bi;
+  for (PetscInt c0 = 0; c0 < space.NumCells(); c0 += LoadBlock::kCells) {
+    const PetscInt m = std::min(LoadBlock::kCells, space.NumCells() - c0);
+    for (PetscInt i = 0; i < m; ++i) {
+      X[i] = space.X(c0 + i); // gathered once: every quadrature point needs it
+      ComputeCellGeometry(dim, X[i], g[i]);
+      ElementStiffness(space, c0 + i, sys.Kappa(c0 + i), g[i], Ke);
+      PetscCall(MatSetValuesLocal(sys.A, nb, space.Dofs(c0 + i), nb, space.Dofs(c0 + i), Ke, ADD_VALUES));
     }
-    if (!keepLoads) continue;
-    PetscReal *kept = &sys.cellLoads[c * (dim + 2)];
-    std::copy(cl.moment, cl.moment + dim + 1, kept);
-    kept[dim + 1] = cl.oscillation;
+    if (zeroLoad) continue;
+    if (evaluate) block.Evaluate(space, problem, sys.cellRule, c0, m, X, error);
+    for (PetscInt i = 0; i < m; ++i) {
+      const PetscInt c = c0 + i;
+      CellLoad       cl;
+      ComputeCellLoad(space, problem, sys, c, X[i], g[i], evaluate ? &block.fx[i * nq] : nullptr, evaluate ? &block.x[i * nq * dim] : nullptr, work, cl, keepLoads, &range, error);
+      // b_i = int_T f phi_i = sum_k moment_k phi_i(X_k): phi_i is affine.
+      for (PetscInt j = 0; j < nb; ++j) {
+        PetscReal bj = 0;
+        for (PetscInt k = 0; k <= dim; ++k) bj += cl.moment[k] * phi[j][k];
+        load[space.Dofs(c)[j]] += bj;
+      }
+      if (!keepLoads) continue;
+      PetscReal *kept = &sys.cellLoads[c * (dim + 2)];
+      std::copy(cl.moment, cl.moment + dim + 1, kept);
+      kept[dim + 1] = cl.oscillation;
+    }
   }
   PetscFunctionReturn(0);
+}
+
+// The points of the face rule on boundary face bf (x, rule.Size() * dim values), and their barycentric
+// coordinates in its cell (lambda, rule.Size() * (dim + 1) values).
+static void FacePoints(const Space &space, const BoundaryFace &bf, const Quadrature &rule, PetscReal *lambda, PetscReal *x)
+{
+  const Space::Coords X = space.X(bf.cell);
+  for (PetscInt q = 0; q < rule.Size(); ++q) {
+    space.FaceToCell(bf, rule.Point(q), &lambda[q * (space.dim + 1)]);
+    SimplexPoint(space.dim, X, &lambda[q * (space.dim + 1)], &x[q * space.dim]);
+  }
 }
 
 // Neumann term: integral of g * phi_i over the faces of Gamma_N, with the face rule mapped into the cell.
 static void AssembleNeumann(const Space &space, const Problem &problem, const System &sys, PetscScalar *load, LoadRange &range, std::string &error)
 {
-  PetscReal lambda[4], x[3];
+  const PetscInt         nq = sys.faceRule.Size(), dim = space.dim;
+  std::vector<PetscReal> lambda(nq * (dim + 1)), x(nq * dim), gx(nq);
   for (const BoundaryFace &bf : space.boundary) {
     if (std::find(problem.neumann.begin(), problem.neumann.end(), bf.part) == problem.neumann.end()) continue;
     const PetscReal area = space.FaceMeasure(bf);
+    FacePoints(space, bf, sys.faceRule, lambda.data(), x.data());
     problem.g->SetCellSet(space.CellSet(bf.cell)); // a boundary face has one cell
-    for (PetscInt q = 0; q < sys.faceRule.Size(); ++q) {
-      space.FaceToCell(bf, sys.faceRule.Point(q), lambda);
-      space.Point(bf.cell, lambda, x);
-      const PetscReal gx = problem.g->Scalar(x, space.dim, error), gq = gx * sys.faceRule.weights[q] * area;
-      range.Record(*problem.g, gx, gq, x, space.dim);
-      for (PetscInt i = 0; i < space.Nb(); ++i) load[space.Dofs(bf.cell)[i]] += gq * space.BasisValue(bf.cell, i, lambda);
+    problem.g->EvalBatch(nq, x.data(), dim, nullptr, gx.data(), error);
+    for (PetscInt q = 0; q < nq; ++q) {
+      const PetscReal gq = gx[q] * sys.faceRule.weights[q] * area;
+      range.Record(*problem.g, gx[q], gq, &x[q * dim], dim);
+      for (PetscInt i = 0; i < space.Nb(); ++i) load[space.Dofs(bf.cell)[i]] += gq * space.BasisValue(bf.cell, i, &lambda[q * (dim + 1)]);
     }
   }
 }
@@ -200,15 +262,14 @@ static void DirichletValues(const Space &space, const Problem &problem, const Sy
     });
     return;
   }
-  PetscReal lambda[4], x[3];
+  const PetscInt         nq = sys.faceRule.Size();
+  std::vector<PetscReal> lambda(nq * (space.dim + 1)), x(nq * space.dim), ux(nq);
   for (const BoundaryFace &bf : space.boundary) {
     if (space.kindLocal[bf.dof] != kDirichlet) continue;
+    FacePoints(space, bf, sys.faceRule, lambda.data(), x.data());
+    problem.uD->EvalBatch(nq, x.data(), space.dim, nullptr, ux.data(), error);
     PetscReal mean = 0;
-    for (PetscInt q = 0; q < sys.faceRule.Size(); ++q) {
-      space.FaceToCell(bf, sys.faceRule.Point(q), lambda);
-      space.Point(bf.cell, lambda, x);
-      mean += sys.faceRule.weights[q] * problem.uD->Scalar(x, space.dim, error);
-    }
+    for (PetscInt q = 0; q < nq; ++q) mean += sys.faceRule.weights[q] * ux[q];
     u[bf.dof] = mean;
   }
 }

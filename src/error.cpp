@@ -3,6 +3,7 @@
 #include "signorini/quadrature.h"
 #include "signorini/stages.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace signorini {
@@ -16,6 +17,32 @@ PetscErrorCode ErrorOptionsFromCommandLine(MPI_Comm comm, PetscInt &degree)
   PetscFunctionReturn(0);
 }
 
+// The exact solution and its gradient at the rule's points of a block of cells, each expression evaluated
+// once for the whole block.
+namespace {
+struct ExactBlock {
+  static constexpr PetscInt kCells = 32;
+  std::vector<PetscReal>    x, u, grad; // point q of block cell i: x[(i * nq + q) * dim], u[i * nq + q], grad[(i * nq + q) * dim]
+  std::vector<PetscInt>     sets;
+  Space::Coords             X[kCells];  // the vertices of block cell i
+  void Evaluate(const Space &space, const Problem &problem, const Quadrature &rule, PetscInt c0, PetscInt m, std::string &error)
+  {
+    const PetscInt nq = rule.Size(), dim = space.dim, n = m * nq;
+    x.resize(kCells * nq * dim);
+    u.resize(kCells * nq);
+    grad.resize(kCells * nq * dim);
+    sets.resize(kCells * nq);
+    for (PetscInt i = 0; i < m; ++i) {
+      X[i] = space.X(c0 + i);
+      for (PetscInt q = 0; q < nq; ++q) SimplexPoint(dim, X[i], rule.Point(q), &x[(i * nq + q) * dim]);
+      std::fill_n(&sets[i * nq], nq, space.CellSet(c0 + i));
+    }
+    problem.exact->EvalBatch(n, x.data(), dim, sets.data(), u.data(), error);
+    problem.exactGrad->EvalBatch(n, x.data(), dim, sets.data(), grad.data(), error);
+  }
+};
+} // namespace
+
 PetscErrorCode ErrorAgainstExact(const Space &space, const Problem &problem, const System &sys, Vec u, PetscInt degree, ErrorNorms &e)
 {
   Vec                loc;
@@ -23,35 +50,35 @@ PetscErrorCode ErrorAgainstExact(const Space &space, const Problem &problem, con
   std::string        error;
   const Quadrature   rule = SimplexQuadrature(space.dim, degree);
   PetscReal          sums[3] = {0, 0, 0};
+  ExactBlock         block;
   PetscFunctionBeginUser;
   PetscCall(StagePush(Stage::Error));
   PetscCall(DMGetLocalVector(space.dm, &loc));
   PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, loc));
   PetscCall(VecGetArrayRead(loc, &a));
-  const PetscInt dim = space.dim;
-  for (PetscInt c = 0; c < space.NumCells(); ++c) {
-    CellGeometry g;
-    ComputeCellGeometry(dim, space.X(c), g);
-    // u_h is affine on the cell: its gradient is constant.
-    PetscReal gradh[3];
-    space.Grad(c, a, g, gradh);
-    problem.exact->SetCellSet(space.CellSet(c));
-    problem.exactGrad->SetCellSet(space.CellSet(c));
-    PetscReal semi2 = 0;
-    for (PetscInt q = 0; q < rule.Size(); ++q) {
-      const PetscReal *lambda = rule.Point(q);
-      PetscReal        x[3], du[3];
-      space.Point(c, lambda, x);
-      const PetscReal uh = space.Value(c, a, lambda);
-      const PetscReal ue = problem.exact->Scalar(x, dim, error);
-      problem.exactGrad->Eval(x, dim, du, error);
-      PetscReal d2 = 0;
-      for (PetscInt d = 0; d < dim; ++d) d2 += (du[d] - gradh[d]) * (du[d] - gradh[d]);
-      sums[0] += rule.weights[q] * g.volume * (ue - uh) * (ue - uh);
-      semi2 += rule.weights[q] * g.volume * d2;
+  const PetscInt dim = space.dim, nq = rule.Size();
+  for (PetscInt c0 = 0; c0 < space.NumCells(); c0 += ExactBlock::kCells) {
+    const PetscInt m = std::min(ExactBlock::kCells, space.NumCells() - c0);
+    block.Evaluate(space, problem, rule, c0, m, error);
+    for (PetscInt i = 0; i < m; ++i) {
+      const PetscInt c = c0 + i;
+      CellGeometry   g;
+      ComputeCellGeometry(dim, block.X[i], g);
+      // u_h is affine on the cell: its gradient is constant.
+      PetscReal gradh[3];
+      space.Grad(c, a, g, gradh);
+      PetscReal semi2 = 0;
+      for (PetscInt q = 0; q < nq; ++q) {
+        const PetscReal  uh = space.Value(c, a, rule.Point(q)), ue = block.u[i * nq + q];
+        const PetscReal *du = &block.grad[(i * nq + q) * dim];
+        PetscReal        d2 = 0;
+        for (PetscInt d = 0; d < dim; ++d) d2 += (du[d] - gradh[d]) * (du[d] - gradh[d]);
+        sums[0] += rule.weights[q] * g.volume * (ue - uh) * (ue - uh);
+        semi2 += rule.weights[q] * g.volume * d2;
+      }
+      sums[1] += semi2;
+      sums[2] += sys.Kappa(c) * semi2;
     }
-    sums[1] += semi2;
-    sums[2] += sys.Kappa(c) * semi2;
   }
   PetscCall(VecRestoreArrayRead(loc, &a));
   PetscCall(DMRestoreLocalVector(space.dm, &loc));

@@ -30,7 +30,7 @@ static void CheckGeometry(unit::Checker &ck, const HandCell &hc)
   const PetscInt dim = hc.dim;
   CellGeometry   g;
   const bool     ok = ComputeCellGeometry(dim, hc.X.data(), g);
-  if (!ck.Check(ok, hc.name + " is accepted", "returned false for a non-degenerate cell")) return;
+  if (!ck.Check(ok && signorini::SimplexIsValid(dim, hc.X.data()), hc.name + " is accepted", "returned false for a non-degenerate cell")) return;
   ck.Close(g.volume, hc.volume, 1e-13, hc.name + " volume", 0.0);
 
   // grad lambda_k . (X_j - X_0) = delta_kj - delta_k0 for j = 1..dim, and sum_k grad lambda_k = 0.
@@ -108,6 +108,7 @@ static void TestHandCells(unit::Checker &ck)
     CellGeometry g;
     const bool   ok = ComputeCellGeometry(hc.dim, hc.X.data(), g);
     ck.Check(!ok, hc.name + " is rejected", "returned true (volume %.3g)", ok ? (double)g.volume : 0.0);
+    ck.Check(!signorini::SimplexIsValid(hc.dim, hc.X.data()), hc.name + " is rejected by SimplexIsValid");
   }
 }
 

@@ -1,7 +1,7 @@
 // Quadrature rules on the reference simplex of dimension 1, 2 or 3, in barycentric coordinates.
 //
-// The rule of degree 1 is the one-point centroid rule. Degrees 2 to 5 on triangles and tetrahedra use
-// fully symmetric rules (3, 6, 6, 7 points on a triangle; 4, 14, 14, 14 on a tetrahedron). Other degrees,
+// The rule of degree 1 is the one-point centroid rule. Degrees 2 to 6 on triangles and tetrahedra use
+// fully symmetric rules (3, 6, 6, 7, 12 points on a triangle; 4, 14, 14, 14, 24 on a tetrahedron). Other degrees,
 // and segments, use Stroud's conical product rule: Gauss-Legendre points on the unit cube collapsed onto the
 // simplex (Duffy map), with enough points in each direction that the Jacobian of the collapse is integrated
 // too (on a segment, the Gauss-Legendre rule). All weights are positive and sum to 1, so

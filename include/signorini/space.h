@@ -26,8 +26,19 @@ struct CellGeometry {
   PetscReal gradLambda[4][3]; // gradients of the barycentric coordinates
   PetscReal centroid[3];
 };
-// Returns false for a degenerate cell.
+// Returns false for a degenerate cell (and leaves g unset).
 bool ComputeCellGeometry(PetscInt dim, const PetscReal *X, CellGeometry &g);
+// Whether the simplex with vertices X is not degenerate: ComputeCellGeometry's verdict without the geometry.
+bool SimplexIsValid(PetscInt dim, const PetscReal *X);
+// The centroid of the simplex with vertices X (the mean of the vertices).
+inline void SimplexCentroid(PetscInt dim, const PetscReal *X, PetscReal *x)
+{
+  for (PetscInt d = 0; d < dim; ++d) {
+    x[d] = 0;
+    for (PetscInt k = 0; k <= dim; ++k) x[d] += X[k * dim + d];
+    x[d] *= 1.0 / (dim + 1);
+  }
+}
 // x = sum_k lambda_k X_k: the point of barycentric coordinates lambda in the simplex with vertices X.
 inline void SimplexPoint(PetscInt dim, const PetscReal *X, const PetscReal *lambda, PetscReal *x)
 {
