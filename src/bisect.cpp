@@ -398,33 +398,44 @@ PetscInt Carrier(const Coarse &m, const std::vector<char> &mark, PetscInt c, con
 }
 
 // Numbers the distinct keys (sorted vertex sets, one per occurrence) in increasing order: idOf[occurrence]
-// = number, `verts` gets each key once, `first` an occurrence of each. A counting sort by the first vertex,
-// then small sorts within each vertex's bucket: several times faster than one sort of all occurrences.
+// = number, `verts` gets each key once, `first` an occurrence of each. A least-significant-digit radix
+// sort of (key, occurrence) records, one stable counting sort by each vertex from the last: linear in the
+// occurrences and reading the records in order, where sorting within each first vertex's bucket was most
+// of the refinement's time.
 template <size_t N>
 void Distinct(const std::vector<std::array<PetscInt, N>> &key, PetscInt numVertices, std::vector<PetscInt> &idOf, std::vector<PetscInt> &verts, std::vector<PetscInt> &first)
 {
+  struct Record {
+    std::array<PetscInt, N> k;
+    PetscInt                o;
+  };
   const PetscInt        n = (PetscInt)key.size();
-  std::vector<PetscInt> start(numVertices + 1, 0), order(n);
-  for (const auto &k : key) ++start[k[0] + 1];
-  std::partial_sum(start.begin(), start.end(), start.begin());
-  {
-    std::vector<PetscInt> fill(start.begin(), start.end() - 1);
-    for (PetscInt o = 0; o < n; ++o) order[fill[key[o][0]]++] = o;
+  std::vector<PetscInt> count(numVertices + 1);
+  std::vector<Record>   rec(n), next(n);
+  for (PetscInt o = 0; o < n; ++o) rec[o] = {key[o], o};
+  for (size_t pos = N; pos-- > 0;) {
+    std::fill(count.begin(), count.end(), 0);
+    for (const Record &r : rec) ++count[r.k[pos] + 1];
+    std::partial_sum(count.begin(), count.end(), count.begin());
+    for (const Record &r : rec) next[count[r.k[pos]]++] = r;
+    rec.swap(next);
   }
+  const auto same = [](const Record &x, const Record &y) {
+    for (size_t i = 0; i < N; ++i)
+      if (x.k[i] != y.k[i]) return false;
+    return true;
+  };
   idOf.assign(n, -1);
   verts.clear(), first.clear();
   PetscInt id = -1;
-  for (PetscInt v = 0; v < numVertices; ++v) {
-    std::sort(order.begin() + start[v], order.begin() + start[v + 1], [&](PetscInt a, PetscInt b) { return key[a] < key[b]; });
-    for (PetscInt i = start[v]; i < start[v + 1]; ++i) {
-      const PetscInt o = order[i];
-      if (i == start[v] || key[o] != key[order[i - 1]]) {
-        ++id;
-        verts.insert(verts.end(), key[o].begin(), key[o].end());
-        first.push_back(o);
-      }
-      idOf[o] = id;
+  for (PetscInt i = 0; i < n; ++i) {
+    const Record &r = rec[i];
+    if (i == 0 || !same(r, rec[i - 1])) {
+      ++id;
+      verts.insert(verts.end(), r.k.begin(), r.k.end());
+      first.push_back(r.o);
     }
+    idOf[r.o] = id;
   }
 }
 
@@ -434,10 +445,18 @@ void FinePoints(const Coarse &m, const std::vector<char> &mark, const Children &
 {
   const PetscInt nb = ch.nv, nce = m.nce;
   f.dim = m.dim, f.nc = (PetscInt)ch.verts.size() / nb;
-  std::vector<std::pair<PetscInt, PetscInt>> byNumber;
-  for (PetscInt id = 0; id < (PetscInt)gnum.size(); ++id)
-    if (gnum[id] >= 0) byNumber.push_back({gnum[id], id});
-  std::sort(byNumber.begin(), byNumber.end());
+  // The vertices by global number. A rank numbers its own in the order of their ids, so the numbers come
+  // mostly ascending: the ascending run is kept, the few others sorted and merged into it.
+  std::vector<std::pair<PetscInt, PetscInt>> byNumber, rising, others;
+  rising.reserve(gnum.size());
+  for (PetscInt id = 0; id < (PetscInt)gnum.size(); ++id) {
+    if (gnum[id] < 0) continue;
+    if (rising.empty() || gnum[id] > rising.back().first) rising.push_back({gnum[id], id});
+    else others.push_back({gnum[id], id});
+  }
+  std::sort(others.begin(), others.end());
+  byNumber.resize(rising.size() + others.size());
+  std::merge(rising.begin(), rising.end(), others.begin(), others.end(), byNumber.begin());
   f.nv = (PetscInt)byNumber.size();
   f.vertexOf.assign(gnum.size(), -1);
   f.vertexId.resize(f.nv);
@@ -485,46 +504,56 @@ void FinePoints(const Coarse &m, const std::vector<char> &mark, const Children &
 PetscErrorCode SetCones(DM dm, const Children &ch, const Fine &f)
 {
   const PetscInt nb = ch.nv;
+  PetscSection   section;
+  PetscInt      *cones, *ornts, last;
   PetscFunctionBeginUser;
   PetscCall(DMPlexSetChart(dm, 0, f.End()));
   for (PetscInt t = 0; t < f.nc; ++t) PetscCall(DMPlexSetConeSize(dm, t, nb));
   for (PetscInt j = 0; j < f.nt; ++j) PetscCall(DMPlexSetConeSize(dm, f.Tri(j), 3));
   for (PetscInt j = 0; j < f.ne; ++j) PetscCall(DMPlexSetConeSize(dm, f.Edge(j), 2));
   PetscCall(DMSetUp(dm));
+  // The cones are written straight into the plex's arrays (DMPlexSetCone checks every point of every cone,
+  // a call per point): point p's cone starts at the sum of the cone sizes before it, which the chart's
+  // order (cells, vertices without cones, triangles, edges) makes a formula.
+  PetscCall(DMPlexGetConeSection(dm, &section));
+  PetscCall(DMPlexGetCones(dm, &cones));
+  PetscCall(DMPlexGetConeOrientations(dm, &ornts));
+  const auto triOffset = [&](PetscInt j) { return nb * f.nc + 3 * j; };
+  const auto edgeOffset = [&](PetscInt j) { return nb * f.nc + 3 * f.nt + 2 * j; };
+  if (f.End() > 0) {
+    PetscCall(PetscSectionGetOffset(section, f.End() - 1, &last));
+    PetscCheck(last == (f.ne ? edgeOffset(f.ne - 1) : f.nt ? triOffset(f.nt - 1) : nb * (f.nc - 1)), PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: unexpected cone layout");
+  }
   for (PetscInt j = 0; j < f.ne; ++j) {
-    const PetscInt cone[2] = {f.Vertex(f.edgeVerts[2 * j]), f.Vertex(f.edgeVerts[2 * j + 1])};
-    PetscCall(DMPlexSetCone(dm, f.Edge(j), cone));
+    PetscInt *cone = &cones[edgeOffset(j)];
+    cone[0] = f.Vertex(f.edgeVerts[2 * j]), cone[1] = f.Vertex(f.edgeVerts[2 * j + 1]);
   }
   std::vector<char> done(f.nt, 0);
   for (PetscInt t = 0; t < f.nc; ++t) {
-    PetscInt v[4], cone[4], ornt[4];
+    PetscInt  v[4], *cone = &cones[nb * t], *ornt = &ornts[nb * t];
     for (PetscInt i = 0; i < nb; ++i) v[i] = f.vertexOf[ch.verts[nb * t + i]];
     if (f.dim == 2) {
       for (PetscInt k = 0; k < 3; ++k) {
         cone[k] = f.Edge(f.childEdge[3 * t + k]);
         ornt[k] = v[kPair[k][0]] < v[kPair[k][1]] ? 0 : -1;
       }
-    } else {
-      for (PetscInt k = 0; k < 4; ++k) {
-        const PetscInt  tri = f.childTri[4 * t + k], want[3] = {v[kRefFace[k][0]], v[kRefFace[k][1]], v[kRefFace[k][2]]};
-        const PetscInt *has = &f.triVerts[3 * tri];
-        cone[k]             = f.Tri(tri);
-        PetscCall(DMPolytopeGetVertexOrientation(DM_POLYTOPE_TRIANGLE, has, want, &ornt[k]));
-        if (done[tri]) continue;
-        done[tri]             = 1;
-        PetscInt       tcone[3];
-        const PetscInt tornt[3] = {0, 0, -1};
-        for (PetscInt e = 0; e < 3; ++e) {
-          const PetscInt a = has[e], b = has[(e + 1) % 3];
-          const PetscInt ia = std::find(v, v + 4, a) - v, ib = std::find(v, v + 4, b) - v;
-          tcone[e] = f.Edge(f.childEdge[6 * t + PairIndex(ia, ib)]);
-        }
-        PetscCall(DMPlexSetCone(dm, f.Tri(tri), tcone));
-        PetscCall(DMPlexSetConeOrientation(dm, f.Tri(tri), tornt));
+      continue;
+    }
+    for (PetscInt k = 0; k < 4; ++k) {
+      const PetscInt  tri = f.childTri[4 * t + k], want[3] = {v[kRefFace[k][0]], v[kRefFace[k][1]], v[kRefFace[k][2]]};
+      const PetscInt *has = &f.triVerts[3 * tri];
+      cone[k]             = f.Tri(tri);
+      PetscCall(DMPolytopeGetVertexOrientation(DM_POLYTOPE_TRIANGLE, has, want, &ornt[k]));
+      if (done[tri]) continue;
+      done[tri]       = 1;
+      PetscInt *tcone = &cones[triOffset(tri)], *tornt = &ornts[triOffset(tri)];
+      for (PetscInt e = 0; e < 3; ++e) {
+        const PetscInt a = has[e], b = has[(e + 1) % 3];
+        const PetscInt ia = std::find(v, v + 4, a) - v, ib = std::find(v, v + 4, b) - v;
+        tcone[e] = f.Edge(f.childEdge[6 * t + PairIndex(ia, ib)]);
+        tornt[e] = e == 2 ? -1 : 0;
       }
     }
-    PetscCall(DMPlexSetCone(dm, t, cone));
-    PetscCall(DMPlexSetConeOrientation(dm, t, ornt));
   }
   PetscFunctionReturn(0);
 }

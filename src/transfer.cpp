@@ -13,15 +13,17 @@ template <class Coords, class F>
 void ForEachFineDof(const Space &coarse, PetscInt numFine, const std::vector<PetscInt> &parent, Coords X, F f)
 {
   const PetscInt dim = coarse.dim;
-  PetscReal      lambda[4], mu[4], x[3];
+  PetscReal      lambda[4], mu[4][4], x[3];
+  CellGeometry   g;
+  PetscInt       last = -1;
+  for (PetscInt i = 0; i <= dim; ++i) DofLambda(coarse.element, dim, i, mu[i]);
   for (PetscInt c = 0; c < numFine; ++c) {
     const PetscInt      pc = parent[c];
     const Space::Coords XH = coarse.X(pc), Xh = X(c);
-    CellGeometry        g;
-    ComputeCellGeometry(dim, XH, g);
+    // The children of a parent come one after the other: its geometry once for all of them.
+    if (pc != last) ComputeCellGeometry(dim, XH, g), last = pc;
     for (PetscInt i = 0; i <= dim; ++i) {
-      DofLambda(coarse.element, dim, i, mu);
-      SimplexPoint(dim, Xh, mu, x);
+      SimplexPoint(dim, Xh, mu[i], x);
       Barycentric(dim, g, XH, x, lambda);
       f(c, i, pc, lambda);
     }
