@@ -397,6 +397,27 @@ PetscInt Carrier(const Coarse &m, const std::vector<char> &mark, PetscInt c, con
   return -1;
 }
 
+// The coarse point that the fine edge between local vertex ids u and v (inside coarse cell c) lies in, as
+// Carrier gives it, without its searches for the common case: a midpoint lies on its own edge only (one
+// bisection per edge), so an edge with a midpoint end lies on that edge or not on any coarse edge; an
+// edge between two coarse vertices is the unbisected coarse edge joining them. Only an edge on no coarse
+// edge (3D: on a face, or inside) goes to Carrier.
+PetscInt EdgeCarrier(const Coarse &m, const std::vector<char> &mark, PetscInt c, PetscInt u, PetscInt v)
+{
+  const PetscInt nV = m.NumVertices();
+  if (u >= nV || v >= nV) {
+    const PetscInt mid = u >= nV ? u : v, end = u >= nV ? v : u, e = mid - nV;
+    if (end == m.edgeVerts[2 * e] || end == m.edgeVerts[2 * e + 1]) return m.eS + e;
+  } else
+    for (PetscInt j = 0; j < m.nce; ++j) {
+      const PetscInt e = m.cellEdges[m.nce * c + j], a = m.edgeVerts[2 * e], b = m.edgeVerts[2 * e + 1];
+      if ((a == u && b == v) || (a == v && b == u)) return m.eS + e;
+    }
+  if (m.dim == 2) return -1;
+  const PetscInt ids[2] = {u, v};
+  return Carrier(m, mark, c, ids, 2);
+}
+
 // Numbers the distinct keys (sorted vertex sets, one per occurrence) in increasing order: idOf[occurrence]
 // = number, `verts` gets each key once, `first` an occurrence of each. A least-significant-digit radix
 // sort of (key, occurrence) records, one stable counting sort by each vertex from the last: linear in the
@@ -426,17 +447,18 @@ void Distinct(const std::vector<std::array<PetscInt, N>> &key, PetscInt numVerti
     return true;
   };
   idOf.assign(n, -1);
-  verts.clear(), first.clear();
+  verts.resize(N * n), first.resize(n);
   PetscInt id = -1;
   for (PetscInt i = 0; i < n; ++i) {
     const Record &r = rec[i];
     if (i == 0 || !same(r, rec[i - 1])) {
       ++id;
-      verts.insert(verts.end(), r.k.begin(), r.k.end());
-      first.push_back(r.o);
+      for (size_t k = 0; k < N; ++k) verts[N * id + k] = r.k[k];
+      first[id] = r.o;
     }
     idOf[r.o] = id;
   }
+  verts.resize(N * (id + 1)), first.resize(id + 1);
 }
 
 // The fine points of one rank: vertices, then the distinct edges and triangles of the children, each with
@@ -477,10 +499,7 @@ void FinePoints(const Coarse &m, const std::vector<char> &mark, const Children &
   }
   f.ne = (PetscInt)first.size();
   f.edgeCarrier.resize(f.ne);
-  for (PetscInt j = 0; j < f.ne; ++j) {
-    for (PetscInt i = 0; i < 2; ++i) ids[i] = f.vertexId[f.edgeVerts[2 * j + i]];
-    f.edgeCarrier[j] = Carrier(m, mark, f.parentOf[first[j] / nce], ids.data(), 2);
-  }
+  for (PetscInt j = 0; j < f.ne; ++j) f.edgeCarrier[j] = EdgeCarrier(m, mark, f.parentOf[first[j] / nce], f.vertexId[f.edgeVerts[2 * j]], f.vertexId[f.edgeVerts[2 * j + 1]]);
   if (m.dim == 2) return;
   {
     std::vector<std::array<PetscInt, 3>> key(4 * f.nc);
