@@ -25,6 +25,8 @@
 #include "signorini/mesh.h"
 #include "signorini/refine.h"
 
+#include <petsc/private/dmpleximpl.h> // DM_Plex: the cones, supports and depth state, see BuildPlex
+
 #include <algorithm>
 #include <array>
 #include <numeric>
@@ -264,7 +266,7 @@ PetscReal Det(const Coarse &m, const std::vector<PetscReal> &x, const PetscInt *
 
 // Cuts every cell by its marked edges in the global order, and turns each child to PETSc's orientation
 // (triangles counter-clockwise, tetrahedra with det[v1 - v0, v2 - v0, v3 - v0] < 0): with the cones of
-// SetCones, cells of positive Jacobian.
+// MakeCones, cells of positive Jacobian.
 void Cut(const Coarse &m, const EdgeOrder &before, const std::vector<char> &mark, Children &ch)
 {
   const PetscInt nV = m.NumVertices(), nb = m.dim + 1;
@@ -519,32 +521,18 @@ void FinePoints(const Coarse &m, const std::vector<char> &mark, const Children &
 }
 
 // Cones and orientations: an edge from its lower to its higher vertex; a triangle (a, b, c), a < b < c,
-// with edges (a, b), (b, c), (c, a), the last reversed; a child's faces in PETSc's reference order.
-PetscErrorCode SetCones(DM dm, const Children &ch, const Fine &f)
+// with edges (a, b), (b, c), (c, a), the last reversed; a child's faces in PETSc's reference order. In the
+// chart's layout (cells, vertices without cones, triangles, edges): point p's cone starts at the sum of
+// the cone sizes before it.
+PetscErrorCode MakeCones(const Children &ch, const Fine &f, std::vector<PetscInt> &cones, std::vector<PetscInt> &ornts, PetscInt &triStart, PetscInt &edgeStart)
 {
   const PetscInt nb = ch.nv;
-  PetscSection   section;
-  PetscInt      *cones, *ornts, last;
   PetscFunctionBeginUser;
-  PetscCall(DMPlexSetChart(dm, 0, f.End()));
-  for (PetscInt t = 0; t < f.nc; ++t) PetscCall(DMPlexSetConeSize(dm, t, nb));
-  for (PetscInt j = 0; j < f.nt; ++j) PetscCall(DMPlexSetConeSize(dm, f.Tri(j), 3));
-  for (PetscInt j = 0; j < f.ne; ++j) PetscCall(DMPlexSetConeSize(dm, f.Edge(j), 2));
-  PetscCall(DMSetUp(dm));
-  // The cones are written straight into the plex's arrays (DMPlexSetCone checks every point of every cone,
-  // a call per point): point p's cone starts at the sum of the cone sizes before it, which the chart's
-  // order (cells, vertices without cones, triangles, edges) makes a formula.
-  PetscCall(DMPlexGetConeSection(dm, &section));
-  PetscCall(DMPlexGetCones(dm, &cones));
-  PetscCall(DMPlexGetConeOrientations(dm, &ornts));
-  const auto triOffset = [&](PetscInt j) { return nb * f.nc + 3 * j; };
-  const auto edgeOffset = [&](PetscInt j) { return nb * f.nc + 3 * f.nt + 2 * j; };
-  if (f.End() > 0) {
-    PetscCall(PetscSectionGetOffset(section, f.End() - 1, &last));
-    PetscCheck(last == (f.ne ? edgeOffset(f.ne - 1) : f.nt ? triOffset(f.nt - 1) : nb * (f.nc - 1)), PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: unexpected cone layout");
-  }
+  triStart = nb * f.nc, edgeStart = triStart + 3 * f.nt;
+  cones.resize(edgeStart + 2 * f.ne);
+  ornts.assign(cones.size(), 0);
   for (PetscInt j = 0; j < f.ne; ++j) {
-    PetscInt *cone = &cones[edgeOffset(j)];
+    PetscInt *cone = &cones[edgeStart + 2 * j];
     cone[0] = f.Vertex(f.edgeVerts[2 * j]), cone[1] = f.Vertex(f.edgeVerts[2 * j + 1]);
   }
   std::vector<char> done(f.nt, 0);
@@ -565,7 +553,7 @@ PetscErrorCode SetCones(DM dm, const Children &ch, const Fine &f)
       PetscCall(DMPolytopeGetVertexOrientation(DM_POLYTOPE_TRIANGLE, has, want, &ornt[k]));
       if (done[tri]) continue;
       done[tri]       = 1;
-      PetscInt *tcone = &cones[triOffset(tri)], *tornt = &ornts[triOffset(tri)];
+      PetscInt *tcone = &cones[triStart + 3 * tri], *tornt = &ornts[triStart + 3 * tri];
       for (PetscInt e = 0; e < 3; ++e) {
         const PetscInt a = has[e], b = has[(e + 1) % 3];
         const PetscInt ia = std::find(v, v + 4, a) - v, ib = std::find(v, v + 4, b) - v;
@@ -574,6 +562,59 @@ PetscErrorCode SetCones(DM dm, const Children &ch, const Fine &f)
       }
     }
   }
+  PetscFunctionReturn(0);
+}
+
+// The plex's cones, supports and depth strata, written straight into its arrays: what DMPlexSetCone,
+// DMPlexSymmetrize and DMPlexStratify make, with the same supports in the same order (by increasing point,
+// as DMPlexSymmetrize lists them), but without their calls and checks per point and cone entry, which made
+// them half of the refinement. The depth of every point is known from its stratum in the chart.
+PetscErrorCode BuildPlex(DM dm, const Children &ch, const Fine &f)
+{
+  const PetscInt        nb = ch.nv, end = f.End();
+  std::vector<PetscInt> cones, ornts, count(end + 1, 0);
+  PetscInt              triStart, edgeStart, size;
+  PetscFunctionBeginUser;
+  PetscCall(MakeCones(ch, f, cones, ornts, triStart, edgeStart));
+  const auto coneSize = [&](PetscInt p) { return p < f.nc ? nb : p < f.Tri(0) ? 0 : p < f.Edge(0) ? 3 : 2; };
+  for (PetscInt q : cones) ++count[q + 1];
+  PetscCall(DMPlexSetChart(dm, 0, end));
+  for (PetscInt p = 0; p < end; ++p) {
+    PetscCall(DMPlexSetConeSize(dm, p, coneSize(p)));
+    PetscCall(DMPlexSetSupportSize(dm, p, count[p + 1]));
+  }
+  PetscCall(DMSetUp(dm)); // allocates the cones and supports
+  DM_Plex *mesh = (DM_Plex *)dm->data;
+  PetscCall(PetscSectionGetStorageSize(mesh->coneSection, &size));
+  PetscCheck(size == (PetscInt)cones.size(), PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: %" PetscInt_FMT " cone entries, not %zu", size, cones.size());
+  std::copy(cones.begin(), cones.end(), mesh->cones);
+  std::copy(ornts.begin(), ornts.end(), mesh->coneOrientations);
+  std::partial_sum(count.begin(), count.end(), count.begin()); // count[q]: where q's support starts
+  if (!cones.empty()) {
+    PetscInt off;
+    PetscCall(PetscSectionGetOffset(mesh->supportSection, end - 1, &off));
+    PetscCheck(off == count[end - 1], PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: unexpected support layout");
+  }
+  for (PetscInt p = 0, at = 0; p < end; ++p)
+    for (PetscInt k = coneSize(p); k > 0; --k, ++at) mesh->supports[count[cones[at]]++] = p;
+  // Depth strata, as DMPlexStratify makes them (a stride set per depth; on every rank every depth).
+  DMLabel        depth;
+  const PetscInt range[4][2] = {{f.Vertex(0), f.Vertex(f.nv)}, {f.Edge(0), end}, {f.Tri(0), f.Tri(f.nt)}, {0, f.nc}};
+  PetscCall(DMCreateLabel(dm, "depth"));
+  PetscCall(DMPlexGetDepthLabel(dm, &depth));
+  for (PetscInt d = 0; d <= f.dim; ++d) {
+    const PetscInt *r = range[d == f.dim ? 3 : d];
+    if (r[0] >= r[1]) continue;
+    IS is;
+    PetscCall(ISCreateStride(PETSC_COMM_SELF, r[1] - r[0], r[0], 1, &is));
+    PetscCall(DMLabelSetStratumIS(depth, d, is));
+    PetscCall(ISDestroy(&is));
+  }
+  PetscInt numValues, maxValues = 0;
+  PetscCall(DMLabelGetNumValues(depth, &numValues));
+  PetscCallMPI(MPI_Allreduce(&numValues, &maxValues, 1, MPIU_INT, MPI_MAX, PetscObjectComm((PetscObject)dm)));
+  for (PetscInt v = numValues; v < maxValues; ++v) PetscCall(DMLabelAddStratum(depth, v));
+  PetscCall(PetscObjectStateGet((PetscObject)depth, &mesh->depthState));
   PetscFunctionReturn(0);
 }
 
@@ -718,12 +759,10 @@ PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked,
   PetscCall(DMCreate(PetscObjectComm((PetscObject)coarse), &dm));
   PetscCall(DMSetType(dm, DMPLEX));
   PetscCall(DMSetDimension(dm, m.dim));
-  PetscCall(SetCones(dm, ch, f));
-  PetscCall(DMPlexSymmetrize(dm));
+  PetscCall(BuildPlex(dm, ch, f));
   std::vector<CellTypeStratum> types = {{m.dim == 2 ? DM_POLYTOPE_TRIANGLE : DM_POLYTOPE_TETRAHEDRON, 0, f.nc}, {DM_POLYTOPE_POINT, f.Vertex(0), f.Vertex(f.nv)}, {DM_POLYTOPE_SEGMENT, f.Edge(0), f.End()}};
   if (m.dim == 3) types.push_back({DM_POLYTOPE_TRIANGLE, f.Tri(0), f.Tri(f.nt)});
   PetscCall(SetCellTypeStrata(dm, types));
-  PetscCall(DMPlexStratify(dm));
   PetscCall(SetPointSF(coarse, dm, m, sh, gnum, f));
   {
     std::vector<PetscReal> x(3 * f.nv);
