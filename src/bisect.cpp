@@ -368,43 +368,30 @@ struct Fine {
   PetscInt              End() const { return nc + nv + nt + ne; }
 };
 
-// The coarse point that the fine point with local vertex ids `ids` (inside coarse cell c) lies in: the
-// cell's lowest-dimensional edge or face whose fine vertices (its vertices and the midpoints of its marked
-// edges) include all of them, or -1 (the cell's interior).
-PetscInt Carrier(const Coarse &m, const std::vector<char> &mark, PetscInt c, const PetscInt *ids, PetscInt n)
+// The coarse face of cell c (3D) that the fine point with local vertex ids `ids` lies in, or -1 (the cell's
+// interior), for a point on no coarse edge: all its vertices lie on the face, a coarse vertex as one of the
+// face's vertices, a midpoint as the midpoint of one of its edges (both ends on the face).
+PetscInt FaceCarrier(const Coarse &m, PetscInt c, const PetscInt *ids, PetscInt n)
 {
   const PetscInt nV = m.NumVertices();
-  PetscInt       on[9], k;
-  const auto     inside = [&](PetscInt count) {
-    for (PetscInt i = 0; i < n; ++i)
-      if (std::find(on, on + count, ids[i]) == on + count) return false;
-    return true;
-  };
-  for (PetscInt j = 0; j < m.nce; ++j) {
-    const PetscInt e = m.cellEdges[m.nce * c + j];
-    k = 0, on[k++] = m.edgeVerts[2 * e], on[k++] = m.edgeVerts[2 * e + 1];
-    if (mark[e]) on[k++] = nV + e;
-    if (inside(k)) return m.eS + e;
-  }
-  for (PetscInt j = 0; m.dim == 3 && j < 4; ++j) {
-    const PetscInt F = m.cellFaces[4 * c + j];
-    k                = 0;
-    for (PetscInt i = 0; i < 3; ++i) {
-      const PetscInt e = m.faceEdges[3 * (F - m.fS) + i];
-      on[k++]          = m.edgeVerts[2 * e], on[k++] = m.edgeVerts[2 * e + 1];
-      if (mark[e]) on[k++] = nV + e;
-    }
-    if (inside(k)) return F;
+  for (PetscInt j = 0; j < 4; ++j) {
+    const PetscInt  F = m.cellFaces[4 * c + j], *fe = &m.faceEdges[3 * (F - m.fS)];
+    const PetscInt *a = &m.edgeVerts[2 * fe[0]], *b = &m.edgeVerts[2 * fe[1]];
+    const PetscInt  v[3] = {a[0], a[1], b[0] == a[0] || b[0] == a[1] ? b[1] : b[0]}; // the third: b's end off a
+    const auto      on   = [&](PetscInt x) { return x == v[0] || x == v[1] || x == v[2]; };
+    bool            all  = true;
+    for (PetscInt i = 0; i < n && all; ++i) all = ids[i] < nV ? on(ids[i]) : on(m.edgeVerts[2 * (ids[i] - nV)]) && on(m.edgeVerts[2 * (ids[i] - nV) + 1]);
+    if (all) return F;
   }
   return -1;
 }
 
-// The coarse point that the fine edge between local vertex ids u and v (inside coarse cell c) lies in, as
-// Carrier gives it, without its searches for the common case: a midpoint lies on its own edge only (one
+// The coarse point that the fine edge between local vertex ids u and v (inside coarse cell c) lies in: its
+// lowest-dimensional edge or face containing it, or -1 (the cell's interior). A midpoint lies on its own edge only (one
 // bisection per edge), so an edge with a midpoint end lies on that edge or not on any coarse edge; an
-// edge between two coarse vertices is the unbisected coarse edge joining them. Only an edge on no coarse
-// edge (3D: on a face, or inside) goes to Carrier.
-PetscInt EdgeCarrier(const Coarse &m, const std::vector<char> &mark, PetscInt c, PetscInt u, PetscInt v)
+// edge between two coarse vertices is the unbisected coarse edge joining them. An edge on no coarse edge
+// lies inside the cell (2D), or on a face or inside (3D: FaceCarrier).
+PetscInt EdgeCarrier(const Coarse &m, PetscInt c, PetscInt u, PetscInt v)
 {
   const PetscInt nV = m.NumVertices();
   if (u >= nV || v >= nV) {
@@ -417,7 +404,7 @@ PetscInt EdgeCarrier(const Coarse &m, const std::vector<char> &mark, PetscInt c,
     }
   if (m.dim == 2) return -1;
   const PetscInt ids[2] = {u, v};
-  return Carrier(m, mark, c, ids, 2);
+  return FaceCarrier(m, c, ids, 2);
 }
 
 // Numbers the distinct keys (sorted vertex sets, one per occurrence) in increasing order: idOf[occurrence]
@@ -465,7 +452,7 @@ void Distinct(const std::vector<std::array<PetscInt, N>> &key, PetscInt numVerti
 
 // The fine points of one rank: vertices, then the distinct edges and triangles of the children, each with
 // its carrier.
-void FinePoints(const Coarse &m, const std::vector<char> &mark, const Children &ch, const std::vector<PetscInt> &gnum, Fine &f)
+void FinePoints(const Coarse &m, const Children &ch, const std::vector<PetscInt> &gnum, Fine &f)
 {
   const PetscInt nb = ch.nv, nce = m.nce;
   f.dim = m.dim, f.nc = (PetscInt)ch.verts.size() / nb;
@@ -501,7 +488,7 @@ void FinePoints(const Coarse &m, const std::vector<char> &mark, const Children &
   }
   f.ne = (PetscInt)first.size();
   f.edgeCarrier.resize(f.ne);
-  for (PetscInt j = 0; j < f.ne; ++j) f.edgeCarrier[j] = EdgeCarrier(m, mark, f.parentOf[first[j] / nce], f.vertexId[f.edgeVerts[2 * j]], f.vertexId[f.edgeVerts[2 * j + 1]]);
+  for (PetscInt j = 0; j < f.ne; ++j) f.edgeCarrier[j] = EdgeCarrier(m, f.parentOf[first[j] / nce], f.vertexId[f.edgeVerts[2 * j]], f.vertexId[f.edgeVerts[2 * j + 1]]);
   if (m.dim == 2) return;
   {
     std::vector<std::array<PetscInt, 3>> key(4 * f.nc);
@@ -516,7 +503,7 @@ void FinePoints(const Coarse &m, const std::vector<char> &mark, const Children &
   f.triCarrier.resize(f.nt);
   for (PetscInt j = 0; j < f.nt; ++j) {
     for (PetscInt i = 0; i < 3; ++i) ids[i] = f.vertexId[f.triVerts[3 * j + i]];
-    f.triCarrier[j] = Carrier(m, mark, f.parentOf[first[j] / 4], ids.data(), 3);
+    f.triCarrier[j] = FaceCarrier(m, f.parentOf[first[j] / 4], ids.data(), 3); // a triangle lies on no edge
   }
 }
 
@@ -754,7 +741,7 @@ PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked,
   Cut(m, before, mark, ch);
   std::vector<PetscInt> gnum;
   PetscCall(NumberVertices(coarse, m, sh, mark, gnum));
-  FinePoints(m, mark, ch, gnum, f);
+  FinePoints(m, ch, gnum, f);
 
   PetscCall(DMCreate(PetscObjectComm((PetscObject)coarse), &dm));
   PetscCall(DMSetType(dm, DMPLEX));
