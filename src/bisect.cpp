@@ -25,6 +25,8 @@
 #include "signorini/mesh.h"
 #include "signorini/refine.h"
 
+#include <petsc/private/dmpleximpl.h> // DM_Plex: the cones, supports and depth state, see BuildPlex
+
 #include <algorithm>
 #include <array>
 #include <numeric>
@@ -264,7 +266,7 @@ PetscReal Det(const Coarse &m, const std::vector<PetscReal> &x, const PetscInt *
 
 // Cuts every cell by its marked edges in the global order, and turns each child to PETSc's orientation
 // (triangles counter-clockwise, tetrahedra with det[v1 - v0, v2 - v0, v3 - v0] < 0): with the cones of
-// SetCones, cells of positive Jacobian.
+// MakeCones, cells of positive Jacobian.
 void Cut(const Coarse &m, const EdgeOrder &before, const std::vector<char> &mark, Children &ch)
 {
   const PetscInt nV = m.NumVertices(), nb = m.dim + 1;
@@ -366,78 +368,106 @@ struct Fine {
   PetscInt              End() const { return nc + nv + nt + ne; }
 };
 
-// The coarse point that the fine point with local vertex ids `ids` (inside coarse cell c) lies in: the
-// cell's lowest-dimensional edge or face whose fine vertices (its vertices and the midpoints of its marked
-// edges) include all of them, or -1 (the cell's interior).
-PetscInt Carrier(const Coarse &m, const std::vector<char> &mark, PetscInt c, const PetscInt *ids, PetscInt n)
+// The coarse face of cell c (3D) that the fine point with local vertex ids `ids` lies in, or -1 (the cell's
+// interior), for a point on no coarse edge: all its vertices lie on the face, a coarse vertex as one of the
+// face's vertices, a midpoint as the midpoint of one of its edges (both ends on the face).
+PetscInt FaceCarrier(const Coarse &m, PetscInt c, const PetscInt *ids, PetscInt n)
 {
   const PetscInt nV = m.NumVertices();
-  PetscInt       on[9], k;
-  const auto     inside = [&](PetscInt count) {
-    for (PetscInt i = 0; i < n; ++i)
-      if (std::find(on, on + count, ids[i]) == on + count) return false;
-    return true;
-  };
-  for (PetscInt j = 0; j < m.nce; ++j) {
-    const PetscInt e = m.cellEdges[m.nce * c + j];
-    k = 0, on[k++] = m.edgeVerts[2 * e], on[k++] = m.edgeVerts[2 * e + 1];
-    if (mark[e]) on[k++] = nV + e;
-    if (inside(k)) return m.eS + e;
-  }
-  for (PetscInt j = 0; m.dim == 3 && j < 4; ++j) {
-    const PetscInt F = m.cellFaces[4 * c + j];
-    k                = 0;
-    for (PetscInt i = 0; i < 3; ++i) {
-      const PetscInt e = m.faceEdges[3 * (F - m.fS) + i];
-      on[k++]          = m.edgeVerts[2 * e], on[k++] = m.edgeVerts[2 * e + 1];
-      if (mark[e]) on[k++] = nV + e;
-    }
-    if (inside(k)) return F;
+  for (PetscInt j = 0; j < 4; ++j) {
+    const PetscInt  F = m.cellFaces[4 * c + j], *fe = &m.faceEdges[3 * (F - m.fS)];
+    const PetscInt *a = &m.edgeVerts[2 * fe[0]], *b = &m.edgeVerts[2 * fe[1]];
+    const PetscInt  v[3] = {a[0], a[1], b[0] == a[0] || b[0] == a[1] ? b[1] : b[0]}; // the third: b's end off a
+    const auto      on   = [&](PetscInt x) { return x == v[0] || x == v[1] || x == v[2]; };
+    bool            all  = true;
+    for (PetscInt i = 0; i < n && all; ++i) all = ids[i] < nV ? on(ids[i]) : on(m.edgeVerts[2 * (ids[i] - nV)]) && on(m.edgeVerts[2 * (ids[i] - nV) + 1]);
+    if (all) return F;
   }
   return -1;
 }
 
+// The coarse point that the fine edge between local vertex ids u and v (inside coarse cell c) lies in: its
+// lowest-dimensional edge or face containing it, or -1 (the cell's interior). A midpoint lies on its own edge only (one
+// bisection per edge), so an edge with a midpoint end lies on that edge or not on any coarse edge; an
+// edge between two coarse vertices is the unbisected coarse edge joining them. An edge on no coarse edge
+// lies inside the cell (2D), or on a face or inside (3D: FaceCarrier).
+PetscInt EdgeCarrier(const Coarse &m, PetscInt c, PetscInt u, PetscInt v)
+{
+  const PetscInt nV = m.NumVertices();
+  if (u >= nV || v >= nV) {
+    const PetscInt mid = u >= nV ? u : v, end = u >= nV ? v : u, e = mid - nV;
+    if (end == m.edgeVerts[2 * e] || end == m.edgeVerts[2 * e + 1]) return m.eS + e;
+  } else
+    for (PetscInt j = 0; j < m.nce; ++j) {
+      const PetscInt e = m.cellEdges[m.nce * c + j], a = m.edgeVerts[2 * e], b = m.edgeVerts[2 * e + 1];
+      if ((a == u && b == v) || (a == v && b == u)) return m.eS + e;
+    }
+  if (m.dim == 2) return -1;
+  const PetscInt ids[2] = {u, v};
+  return FaceCarrier(m, c, ids, 2);
+}
+
 // Numbers the distinct keys (sorted vertex sets, one per occurrence) in increasing order: idOf[occurrence]
-// = number, `verts` gets each key once, `first` an occurrence of each. A counting sort by the first vertex,
-// then small sorts within each vertex's bucket: several times faster than one sort of all occurrences.
+// = number, `verts` gets each key once, `first` an occurrence of each. A least-significant-digit radix
+// sort of (key, occurrence) records, one stable counting sort by each vertex from the last: linear in the
+// occurrences and reading the records in order, where sorting within each first vertex's bucket was most
+// of the refinement's time.
 template <size_t N>
 void Distinct(const std::vector<std::array<PetscInt, N>> &key, PetscInt numVertices, std::vector<PetscInt> &idOf, std::vector<PetscInt> &verts, std::vector<PetscInt> &first)
 {
+  struct Record {
+    std::array<PetscInt, N> k;
+    PetscInt                o;
+  };
   const PetscInt        n = (PetscInt)key.size();
-  std::vector<PetscInt> start(numVertices + 1, 0), order(n);
-  for (const auto &k : key) ++start[k[0] + 1];
-  std::partial_sum(start.begin(), start.end(), start.begin());
-  {
-    std::vector<PetscInt> fill(start.begin(), start.end() - 1);
-    for (PetscInt o = 0; o < n; ++o) order[fill[key[o][0]]++] = o;
+  std::vector<PetscInt> count(numVertices + 1);
+  std::vector<Record>   rec(n), next(n);
+  for (PetscInt o = 0; o < n; ++o) rec[o] = {key[o], o};
+  for (size_t pos = N; pos-- > 0;) {
+    std::fill(count.begin(), count.end(), 0);
+    for (const Record &r : rec) ++count[r.k[pos] + 1];
+    std::partial_sum(count.begin(), count.end(), count.begin());
+    for (const Record &r : rec) next[count[r.k[pos]]++] = r;
+    rec.swap(next);
   }
+  const auto same = [](const Record &x, const Record &y) {
+    for (size_t i = 0; i < N; ++i)
+      if (x.k[i] != y.k[i]) return false;
+    return true;
+  };
   idOf.assign(n, -1);
-  verts.clear(), first.clear();
+  verts.resize(N * n), first.resize(n);
   PetscInt id = -1;
-  for (PetscInt v = 0; v < numVertices; ++v) {
-    std::sort(order.begin() + start[v], order.begin() + start[v + 1], [&](PetscInt a, PetscInt b) { return key[a] < key[b]; });
-    for (PetscInt i = start[v]; i < start[v + 1]; ++i) {
-      const PetscInt o = order[i];
-      if (i == start[v] || key[o] != key[order[i - 1]]) {
-        ++id;
-        verts.insert(verts.end(), key[o].begin(), key[o].end());
-        first.push_back(o);
-      }
-      idOf[o] = id;
+  for (PetscInt i = 0; i < n; ++i) {
+    const Record &r = rec[i];
+    if (i == 0 || !same(r, rec[i - 1])) {
+      ++id;
+      for (size_t k = 0; k < N; ++k) verts[N * id + k] = r.k[k];
+      first[id] = r.o;
     }
+    idOf[r.o] = id;
   }
+  verts.resize(N * (id + 1)), first.resize(id + 1);
 }
 
 // The fine points of one rank: vertices, then the distinct edges and triangles of the children, each with
 // its carrier.
-void FinePoints(const Coarse &m, const std::vector<char> &mark, const Children &ch, const std::vector<PetscInt> &gnum, Fine &f)
+void FinePoints(const Coarse &m, const Children &ch, const std::vector<PetscInt> &gnum, Fine &f)
 {
   const PetscInt nb = ch.nv, nce = m.nce;
   f.dim = m.dim, f.nc = (PetscInt)ch.verts.size() / nb;
-  std::vector<std::pair<PetscInt, PetscInt>> byNumber;
-  for (PetscInt id = 0; id < (PetscInt)gnum.size(); ++id)
-    if (gnum[id] >= 0) byNumber.push_back({gnum[id], id});
-  std::sort(byNumber.begin(), byNumber.end());
+  // The vertices by global number. A rank numbers its own in the order of their ids, so the numbers come
+  // mostly ascending: the ascending run is kept, the few others sorted and merged into it.
+  std::vector<std::pair<PetscInt, PetscInt>> byNumber, rising, others;
+  rising.reserve(gnum.size());
+  for (PetscInt id = 0; id < (PetscInt)gnum.size(); ++id) {
+    if (gnum[id] < 0) continue;
+    if (rising.empty() || gnum[id] > rising.back().first) rising.push_back({gnum[id], id});
+    else others.push_back({gnum[id], id});
+  }
+  std::sort(others.begin(), others.end());
+  byNumber.resize(rising.size() + others.size());
+  std::merge(rising.begin(), rising.end(), others.begin(), others.end(), byNumber.begin());
   f.nv = (PetscInt)byNumber.size();
   f.vertexOf.assign(gnum.size(), -1);
   f.vertexId.resize(f.nv);
@@ -458,10 +488,7 @@ void FinePoints(const Coarse &m, const std::vector<char> &mark, const Children &
   }
   f.ne = (PetscInt)first.size();
   f.edgeCarrier.resize(f.ne);
-  for (PetscInt j = 0; j < f.ne; ++j) {
-    for (PetscInt i = 0; i < 2; ++i) ids[i] = f.vertexId[f.edgeVerts[2 * j + i]];
-    f.edgeCarrier[j] = Carrier(m, mark, f.parentOf[first[j] / nce], ids.data(), 2);
-  }
+  for (PetscInt j = 0; j < f.ne; ++j) f.edgeCarrier[j] = EdgeCarrier(m, f.parentOf[first[j] / nce], f.vertexId[f.edgeVerts[2 * j]], f.vertexId[f.edgeVerts[2 * j + 1]]);
   if (m.dim == 2) return;
   {
     std::vector<std::array<PetscInt, 3>> key(4 * f.nc);
@@ -476,56 +503,105 @@ void FinePoints(const Coarse &m, const std::vector<char> &mark, const Children &
   f.triCarrier.resize(f.nt);
   for (PetscInt j = 0; j < f.nt; ++j) {
     for (PetscInt i = 0; i < 3; ++i) ids[i] = f.vertexId[f.triVerts[3 * j + i]];
-    f.triCarrier[j] = Carrier(m, mark, f.parentOf[first[j] / 4], ids.data(), 3);
+    f.triCarrier[j] = FaceCarrier(m, f.parentOf[first[j] / 4], ids.data(), 3); // a triangle lies on no edge
   }
 }
 
 // Cones and orientations: an edge from its lower to its higher vertex; a triangle (a, b, c), a < b < c,
-// with edges (a, b), (b, c), (c, a), the last reversed; a child's faces in PETSc's reference order.
-PetscErrorCode SetCones(DM dm, const Children &ch, const Fine &f)
+// with edges (a, b), (b, c), (c, a), the last reversed; a child's faces in PETSc's reference order. In the
+// chart's layout (cells, vertices without cones, triangles, edges): point p's cone starts at the sum of
+// the cone sizes before it.
+PetscErrorCode MakeCones(const Children &ch, const Fine &f, std::vector<PetscInt> &cones, std::vector<PetscInt> &ornts, PetscInt &triStart, PetscInt &edgeStart)
 {
   const PetscInt nb = ch.nv;
   PetscFunctionBeginUser;
-  PetscCall(DMPlexSetChart(dm, 0, f.End()));
-  for (PetscInt t = 0; t < f.nc; ++t) PetscCall(DMPlexSetConeSize(dm, t, nb));
-  for (PetscInt j = 0; j < f.nt; ++j) PetscCall(DMPlexSetConeSize(dm, f.Tri(j), 3));
-  for (PetscInt j = 0; j < f.ne; ++j) PetscCall(DMPlexSetConeSize(dm, f.Edge(j), 2));
-  PetscCall(DMSetUp(dm));
+  triStart = nb * f.nc, edgeStart = triStart + 3 * f.nt;
+  cones.resize(edgeStart + 2 * f.ne);
+  ornts.assign(cones.size(), 0);
   for (PetscInt j = 0; j < f.ne; ++j) {
-    const PetscInt cone[2] = {f.Vertex(f.edgeVerts[2 * j]), f.Vertex(f.edgeVerts[2 * j + 1])};
-    PetscCall(DMPlexSetCone(dm, f.Edge(j), cone));
+    PetscInt *cone = &cones[edgeStart + 2 * j];
+    cone[0] = f.Vertex(f.edgeVerts[2 * j]), cone[1] = f.Vertex(f.edgeVerts[2 * j + 1]);
   }
   std::vector<char> done(f.nt, 0);
   for (PetscInt t = 0; t < f.nc; ++t) {
-    PetscInt v[4], cone[4], ornt[4];
+    PetscInt  v[4], *cone = &cones[nb * t], *ornt = &ornts[nb * t];
     for (PetscInt i = 0; i < nb; ++i) v[i] = f.vertexOf[ch.verts[nb * t + i]];
     if (f.dim == 2) {
       for (PetscInt k = 0; k < 3; ++k) {
         cone[k] = f.Edge(f.childEdge[3 * t + k]);
         ornt[k] = v[kPair[k][0]] < v[kPair[k][1]] ? 0 : -1;
       }
-    } else {
-      for (PetscInt k = 0; k < 4; ++k) {
-        const PetscInt  tri = f.childTri[4 * t + k], want[3] = {v[kRefFace[k][0]], v[kRefFace[k][1]], v[kRefFace[k][2]]};
-        const PetscInt *has = &f.triVerts[3 * tri];
-        cone[k]             = f.Tri(tri);
-        PetscCall(DMPolytopeGetVertexOrientation(DM_POLYTOPE_TRIANGLE, has, want, &ornt[k]));
-        if (done[tri]) continue;
-        done[tri]             = 1;
-        PetscInt       tcone[3];
-        const PetscInt tornt[3] = {0, 0, -1};
-        for (PetscInt e = 0; e < 3; ++e) {
-          const PetscInt a = has[e], b = has[(e + 1) % 3];
-          const PetscInt ia = std::find(v, v + 4, a) - v, ib = std::find(v, v + 4, b) - v;
-          tcone[e] = f.Edge(f.childEdge[6 * t + PairIndex(ia, ib)]);
-        }
-        PetscCall(DMPlexSetCone(dm, f.Tri(tri), tcone));
-        PetscCall(DMPlexSetConeOrientation(dm, f.Tri(tri), tornt));
+      continue;
+    }
+    for (PetscInt k = 0; k < 4; ++k) {
+      const PetscInt  tri = f.childTri[4 * t + k], want[3] = {v[kRefFace[k][0]], v[kRefFace[k][1]], v[kRefFace[k][2]]};
+      const PetscInt *has = &f.triVerts[3 * tri];
+      cone[k]             = f.Tri(tri);
+      PetscCall(DMPolytopeGetVertexOrientation(DM_POLYTOPE_TRIANGLE, has, want, &ornt[k]));
+      if (done[tri]) continue;
+      done[tri]       = 1;
+      PetscInt *tcone = &cones[triStart + 3 * tri], *tornt = &ornts[triStart + 3 * tri];
+      for (PetscInt e = 0; e < 3; ++e) {
+        const PetscInt a = has[e], b = has[(e + 1) % 3];
+        const PetscInt ia = std::find(v, v + 4, a) - v, ib = std::find(v, v + 4, b) - v;
+        tcone[e] = f.Edge(f.childEdge[6 * t + PairIndex(ia, ib)]);
+        tornt[e] = e == 2 ? -1 : 0;
       }
     }
-    PetscCall(DMPlexSetCone(dm, t, cone));
-    PetscCall(DMPlexSetConeOrientation(dm, t, ornt));
   }
+  PetscFunctionReturn(0);
+}
+
+// The plex's cones, supports and depth strata, written straight into its arrays: what DMPlexSetCone,
+// DMPlexSymmetrize and DMPlexStratify make, with the same supports in the same order (by increasing point,
+// as DMPlexSymmetrize lists them), but without their calls and checks per point and cone entry, which made
+// them half of the refinement. The depth of every point is known from its stratum in the chart.
+PetscErrorCode BuildPlex(DM dm, const Children &ch, const Fine &f)
+{
+  const PetscInt        nb = ch.nv, end = f.End();
+  std::vector<PetscInt> cones, ornts, count(end + 1, 0);
+  PetscInt              triStart, edgeStart, size;
+  PetscFunctionBeginUser;
+  PetscCall(MakeCones(ch, f, cones, ornts, triStart, edgeStart));
+  const auto coneSize = [&](PetscInt p) { return p < f.nc ? nb : p < f.Tri(0) ? 0 : p < f.Edge(0) ? 3 : 2; };
+  for (PetscInt q : cones) ++count[q + 1];
+  PetscCall(DMPlexSetChart(dm, 0, end));
+  for (PetscInt p = 0; p < end; ++p) {
+    PetscCall(DMPlexSetConeSize(dm, p, coneSize(p)));
+    PetscCall(DMPlexSetSupportSize(dm, p, count[p + 1]));
+  }
+  PetscCall(DMSetUp(dm)); // allocates the cones and supports
+  DM_Plex *mesh = (DM_Plex *)dm->data;
+  PetscCall(PetscSectionGetStorageSize(mesh->coneSection, &size));
+  PetscCheck(size == (PetscInt)cones.size(), PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: %" PetscInt_FMT " cone entries, not %zu", size, cones.size());
+  std::copy(cones.begin(), cones.end(), mesh->cones);
+  std::copy(ornts.begin(), ornts.end(), mesh->coneOrientations);
+  std::partial_sum(count.begin(), count.end(), count.begin()); // count[q]: where q's support starts
+  if (!cones.empty()) {
+    PetscInt off;
+    PetscCall(PetscSectionGetOffset(mesh->supportSection, end - 1, &off));
+    PetscCheck(off == count[end - 1], PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: unexpected support layout");
+  }
+  for (PetscInt p = 0, at = 0; p < end; ++p)
+    for (PetscInt k = coneSize(p); k > 0; --k, ++at) mesh->supports[count[cones[at]]++] = p;
+  // Depth strata, as DMPlexStratify makes them (a stride set per depth; on every rank every depth).
+  DMLabel        depth;
+  const PetscInt range[4][2] = {{f.Vertex(0), f.Vertex(f.nv)}, {f.Edge(0), end}, {f.Tri(0), f.Tri(f.nt)}, {0, f.nc}};
+  PetscCall(DMCreateLabel(dm, "depth"));
+  PetscCall(DMPlexGetDepthLabel(dm, &depth));
+  for (PetscInt d = 0; d <= f.dim; ++d) {
+    const PetscInt *r = range[d == f.dim ? 3 : d];
+    if (r[0] >= r[1]) continue;
+    IS is;
+    PetscCall(ISCreateStride(PETSC_COMM_SELF, r[1] - r[0], r[0], 1, &is));
+    PetscCall(DMLabelSetStratumIS(depth, d, is));
+    PetscCall(ISDestroy(&is));
+  }
+  PetscInt numValues, maxValues = 0;
+  PetscCall(DMLabelGetNumValues(depth, &numValues));
+  PetscCallMPI(MPI_Allreduce(&numValues, &maxValues, 1, MPIU_INT, MPI_MAX, PetscObjectComm((PetscObject)dm)));
+  for (PetscInt v = numValues; v < maxValues; ++v) PetscCall(DMLabelAddStratum(depth, v));
+  PetscCall(PetscObjectStateGet((PetscObject)depth, &mesh->depthState));
   PetscFunctionReturn(0);
 }
 
@@ -665,17 +741,15 @@ PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked,
   Cut(m, before, mark, ch);
   std::vector<PetscInt> gnum;
   PetscCall(NumberVertices(coarse, m, sh, mark, gnum));
-  FinePoints(m, mark, ch, gnum, f);
+  FinePoints(m, ch, gnum, f);
 
   PetscCall(DMCreate(PetscObjectComm((PetscObject)coarse), &dm));
   PetscCall(DMSetType(dm, DMPLEX));
   PetscCall(DMSetDimension(dm, m.dim));
-  PetscCall(SetCones(dm, ch, f));
-  PetscCall(DMPlexSymmetrize(dm));
+  PetscCall(BuildPlex(dm, ch, f));
   std::vector<CellTypeStratum> types = {{m.dim == 2 ? DM_POLYTOPE_TRIANGLE : DM_POLYTOPE_TETRAHEDRON, 0, f.nc}, {DM_POLYTOPE_POINT, f.Vertex(0), f.Vertex(f.nv)}, {DM_POLYTOPE_SEGMENT, f.Edge(0), f.End()}};
   if (m.dim == 3) types.push_back({DM_POLYTOPE_TRIANGLE, f.Tri(0), f.Tri(f.nt)});
   PetscCall(SetCellTypeStrata(dm, types));
-  PetscCall(DMPlexStratify(dm));
   PetscCall(SetPointSF(coarse, dm, m, sh, gnum, f));
   {
     std::vector<PetscReal> x(3 * f.nv);

@@ -222,11 +222,12 @@ public:
 
   // The patch of a vertex of kind vertexKind whose cells are the n corner records. Returns false for a
   // singular system. One object serves all patches, so its work arrays are allocated once.
-  bool Solve(char vertexKind, const Corner *corners, PetscInt n, PetscReal *flux)
+  bool Solve(char vertexKind, const Corner *corners, PetscInt n, PetscReal *flux, bool generic = false)
   {
     vertexKind_ = vertexKind;
     corners_    = corners;
     n_          = n;
+    if (nb_ == 3 && !generic && Chain()) return SolveChain(flux);
     MatchFaces();
     for (;;) {
       if (!SolveOnce(flux)) return false;
@@ -243,6 +244,172 @@ public:
   }
 
 private:
+  // 2D: the patch's cells in the order in which they turn around a, each cell's faces containing a as
+  // the one towards the previous cell (left) and the one towards the next (right). Around an interior
+  // vertex the cells close a cycle, at a boundary vertex they form a path from one boundary face to the
+  // other. Returns false for anything else (a vertex where the mesh pinches: two paths), which the
+  // general solve handles.
+  bool Chain()
+  {
+    // Per cell, its two faces containing a and their other vertices (face j = {a, gid[3 - corner - j]}).
+    ends_.resize(n_);
+    for (PetscInt e = 0; e < n_; ++e) {
+      const Corner  &c  = corners_[e];
+      const PetscInt j1 = c.corner == 0 ? 1 : 0, j2 = c.corner == 2 ? 1 : 2;
+      ends_[e]          = {{j1, j2}, {c.gid[3 - c.corner - j1], c.gid[3 - c.corner - j2]}, {-1, -1}, {-1, -1}};
+    }
+    // The cell and side across each face (-1: none): a few comparisons of small integers per pair of cells.
+    for (PetscInt e = 0; e < n_; ++e)
+      for (PetscInt s = 0; s < 2; ++s) {
+        if (ends_[e].next[s] >= 0) continue;
+        for (PetscInt g = e + 1; g < n_; ++g)
+          for (PetscInt t = 0; t < 2; ++t)
+            if (ends_[g].other[t] == ends_[e].other[s]) {
+              if (ends_[g].next[t] >= 0) return false; // a third cell on one face: not a simplex mesh
+              ends_[e].next[s] = g, ends_[e].nextSide[s] = t, ends_[g].next[t] = e, ends_[g].nextSide[t] = s;
+            }
+      }
+    chain_.resize(n_);
+    PetscInt start = 0, side = 0; // the side of the start cell towards the previous cell
+    cycle_ = true;
+    for (PetscInt e = 0; e < n_ && cycle_; ++e) // a path starts at a cell with a boundary face
+      for (PetscInt s = 0; s < 2 && cycle_; ++s)
+        if (ends_[e].next[s] < 0) start = e, side = s, cycle_ = false;
+    PetscInt e = start;
+    for (PetscInt i = 0; i < n_; ++i) {
+      const End &E = ends_[e];
+      chain_[i]    = {e, E.face[side], E.face[1 - side]};
+      const PetscInt next = E.next[1 - side];
+      if (i == n_ - 1) return cycle_ ? next == start && E.nextSide[1 - side] == 0 : next < 0;
+      if (next < 0 || next == start) return false;
+      side = E.nextSide[1 - side], e = next;
+    }
+    return false;
+  }
+  struct End {
+    PetscInt face[2], other[2], next[2], nextSide[2];
+  };
+  std::vector<End> ends_;
+
+  // The patch problem on the chain (the same problem as SolveOnce's): edge i lies between chain cells i - 1
+  // and i (edge 0 of a cycle between the last cell and the first; of a path, the first cell's boundary
+  // face, and edge n the last cell's). The cell graph Laplacian is tridiagonal in the chain's order once
+  // the last cell's row is dropped (when no boundary face is free), so a forward and a backward sweep
+  // solve it: no matching of faces by hashing, no factorisation of a dense matrix.
+  bool SolveChain(PetscReal *flux)
+  {
+    const PetscInt n = n_, ne = cycle_ ? n : n + 1;
+    edges_.resize(ne);
+    for (PetscInt i = 0; i < ne; ++i) {
+      ChainEdge &E = edges_[i];
+      E.leftCell = i > 0 ? i - 1 : (cycle_ ? n - 1 : -1);
+      E.rightCell = i < n ? i : -1;
+      E.free = true, E.contact = false, E.value = 0;
+      if (E.leftCell >= 0 && E.rightCell >= 0) continue;
+      const Link    &L    = chain_[E.leftCell >= 0 ? E.leftCell : E.rightCell];
+      const Corner  &c    = corners_[L.entry];
+      const PetscInt face = E.leftCell >= 0 ? L.right : L.left, kind = c.kind[face];
+      E.contact = kind == kFaceContact;
+      E.free    = kind == kFaceDirichlet || (kind == kFaceContact && vertexKind_ != kDirichlet);
+      if (!E.free) E.value = kind == kFaceNeumann ? c.neumann[face] : 0.0;
+    }
+    for (;;) {
+      if (!SolveChainOnce()) return false;
+      bool changed = false; // contact fluxes must be >= 0: fix the negative ones at 0 and solve again
+      for (ChainEdge &E : edges_)
+        if (E.free && E.contact && E.x < 0) E.free = false, E.value = 0, changed = true;
+      if (!changed) break;
+    }
+    for (PetscInt i = 0; i < n; ++i) {
+      PetscReal *y = &flux[chain_[i].entry * 3];
+      y[0] = y[1] = y[2] = 0;
+    }
+    for (const ChainEdge &E : edges_) {
+      const PetscReal v = E.free ? E.x : E.value;
+      if (E.leftCell >= 0) flux[chain_[E.leftCell].entry * 3 + chain_[E.leftCell].right] = v;
+      if (E.rightCell >= 0) flux[chain_[E.rightCell].entry * 3 + chain_[E.rightCell].left] = E.leftCell >= 0 ? -v : v;
+    }
+    return true;
+  }
+
+  bool SolveChainOnce()
+  {
+    const PetscInt n = n_, ne = (PetscInt)edges_.size();
+    // resid = t - fixed on a cell's faces containing a; the constraint's right-hand side per cell.
+    rhs_.resize(n);
+    PetscReal volume = 0, mismatch = 0;
+    bool      grounded = false;
+    for (const ChainEdge &E : edges_) grounded |= E.free && (E.leftCell < 0 || E.rightCell < 0);
+    const auto resid = [&](PetscInt cell, bool rightFace) {
+      const Link     &L    = chain_[cell];
+      const PetscInt  face = rightFace ? L.right : L.left;
+      const ChainEdge &E   = edges_[rightFace ? (cell + 1) % ne : cell];
+      return corners_[L.entry].target[face] - (E.free ? 0.0 : E.value);
+    };
+    for (PetscInt i = 0; i < n; ++i) {
+      const Corner &c = corners_[chain_[i].entry];
+      rhs_[i]         = -c.load + resid(i, false) + resid(i, true);
+      volume += c.volume, mismatch += rhs_[i];
+    }
+    // Without a free boundary face the constraints sum to r_a: make them compatible, drop the last cell's.
+    const PetscInt rows = grounded ? n : n - 1;
+    if (!grounded)
+      for (PetscInt i = 0; i < n; ++i) rhs_[i] -= mismatch * corners_[chain_[i].entry].volume / volume;
+    // Per free edge: h = the sum of its sides' weights, c = sum of sign * weight * resid (sign +1 on the
+    // left cell's side, -1 on the right's when both exist).
+    diag_.assign(rows, 0.0), off_.assign(rows, 0.0), mu_.resize(rows);
+    for (PetscInt i = 0; i < rows; ++i) mu_[i] = -rhs_[i];
+    for (PetscInt k = 0; k < ne; ++k) {
+      ChainEdge &E = edges_[k];
+      if (!E.free) continue;
+      const bool both = E.leftCell >= 0 && E.rightCell >= 0;
+      E.h = E.c = 0;
+      if (E.leftCell >= 0) {
+        const PetscReal w = corners_[chain_[E.leftCell].entry].weight[chain_[E.leftCell].right];
+        E.h += w, E.c += w * resid(E.leftCell, true);
+      }
+      if (E.rightCell >= 0) {
+        const PetscReal w = corners_[chain_[E.rightCell].entry].weight[chain_[E.rightCell].left];
+        E.h += w, E.c += (both ? -w : w) * resid(E.rightCell, false);
+      }
+      const PetscReal inv = 1.0 / E.h;
+      if (E.leftCell >= 0 && E.leftCell < rows) diag_[E.leftCell] += inv, mu_[E.leftCell] += E.c * inv;
+      if (E.rightCell >= 0 && E.rightCell < rows) diag_[E.rightCell] += inv, mu_[E.rightCell] += (both ? -E.c : E.c) * inv;
+      if (both && E.leftCell + 1 == E.rightCell && E.rightCell < rows) off_[E.rightCell] = -inv; // row i couples to i - 1
+    }
+    // Cholesky-free elimination of the symmetric positive definite tridiagonal system (pivots must stay > 0).
+    for (PetscInt i = 0; i < rows; ++i) {
+      if (i > 0) {
+        const PetscReal l = off_[i] / diag_[i - 1];
+        diag_[i] -= l * off_[i], mu_[i] -= l * mu_[i - 1];
+      }
+      if (!(diag_[i] > 0)) return false;
+    }
+    for (PetscInt i = rows - 1; i >= 0; --i) mu_[i] = (mu_[i] - (i + 1 < rows ? off_[i + 1] * mu_[i + 1] : 0.0)) / diag_[i];
+    for (ChainEdge &E : edges_) {
+      if (!E.free) continue;
+      const bool both = E.leftCell >= 0 && E.rightCell >= 0;
+      PetscReal  x    = E.c;
+      if (E.leftCell >= 0 && E.leftCell < rows) x -= mu_[E.leftCell];
+      if (E.rightCell >= 0 && E.rightCell < rows) x -= (both ? -1.0 : 1.0) * mu_[E.rightCell];
+      E.x = x / E.h;
+    }
+    return true;
+  }
+
+  struct Link {
+    PetscInt entry, left, right; // the corner record, its faces containing a towards the previous and next cell
+  };
+  struct ChainEdge {
+    PetscInt  leftCell, rightCell; // chain positions (-1: none, a boundary face)
+    bool      free, contact;
+    PetscReal value, h, c, x;      // value: fixed flux; x: the free flux, outward from the left cell
+  };
+  std::vector<Link>      chain_;
+  std::vector<ChainEdge> edges_;
+  bool                   cycle_ = false;
+  std::vector<PetscReal> diag_, off_;
+
   struct Side {
     PetscInt  entry, face, unknown; // corner record, its face, the unknown (-1: fixed)
     PetscReal sign;
@@ -411,7 +578,7 @@ private:
 
 } // namespace
 
-PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const System &sys, Vec u, Reconstruction &r)
+PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const System &sys, Vec u, Reconstruction &r, bool generic)
 {
   MPI_Comm             comm = PetscObjectComm((PetscObject)space.dm);
   static PetscLogEvent event = 0, cellEvent = 0, patchEvent = 0; // -log_view: the whole, its cell loop, its local patches
@@ -497,7 +664,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
       cells[e] = at[e] / nb;
       FillCorner(cd, nb, cells[e], at[e] - cells[e] * nb, corners[e]);
     }
-    ok = patch.Solve(space.kindLocal[v], corners.data(), n, out.data());
+    ok = patch.Solve(space.kindLocal[v], corners.data(), n, out.data(), generic);
     for (PetscInt e = 0; e < n && ok; ++e)
       for (PetscInt j = 0; j < nb; ++j) r.flux[cells[e] * nb + j] += out[e * nb + j];
   }
@@ -536,7 +703,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscCall(PetscSFGatherEnd(sf, cornerType, leafCorners.data(), rootCorners.data()));
   std::vector<PetscReal> rootFlux(nmulti * nb, 0.0), leafFlux(leafAt.size() * nb, 0.0);
   for (PetscInt i = 0, off = 0; i < space.numOwned && ok; off += degree[i++])
-    if (degree[i] > 0) ok = patch.Solve(rootKind[i], &rootCorners[off], degree[i], &rootFlux[off * nb]);
+    if (degree[i] > 0) ok = patch.Solve(rootKind[i], &rootCorners[off], degree[i], &rootFlux[off * nb], generic);
   PetscCall(PetscSFScatterBegin(sf, fluxType, rootFlux.data(), leafFlux.data()));
   PetscCall(PetscSFScatterEnd(sf, fluxType, rootFlux.data(), leafFlux.data()));
   for (size_t l = 0; l < leafAt.size(); ++l)

@@ -8,20 +8,24 @@ namespace signorini {
 
 namespace {
 // Calls f(c, i, pc, lambda) for every DOF i of every fine cell c, with pc its parent and lambda the
-// barycentric coordinates of the DOF's point in pc; X(c) gives the vertex coordinates of fine cell c.
+// barycentric coordinates of the DOF's point in pc; X(c) gives the vertex coordinates of fine cell c
+// (anything SimplexPoint reads: a Space::Coords or a pointer).
 template <class Coords, class F>
 void ForEachFineDof(const Space &coarse, PetscInt numFine, const std::vector<PetscInt> &parent, Coords X, F f)
 {
   const PetscInt dim = coarse.dim;
-  PetscReal      lambda[4], mu[4], x[3];
+  PetscReal      lambda[4], mu[4][4], x[3];
+  CellGeometry   g;
+  PetscInt       last = -1;
+  for (PetscInt i = 0; i <= dim; ++i) DofLambda(coarse.element, dim, i, mu[i]);
+  Space::Coords  XH;
   for (PetscInt c = 0; c < numFine; ++c) {
-    const PetscInt      pc = parent[c];
-    const Space::Coords XH = coarse.X(pc), Xh = X(c);
-    CellGeometry        g;
-    ComputeCellGeometry(dim, XH, g);
+    const PetscInt pc = parent[c];
+    const auto    &Xh = X(c);
+    // The children of a parent come one after the other: its vertices and geometry once for all of them.
+    if (pc != last) XH = coarse.X(pc), ComputeCellGeometry(dim, XH, g), last = pc;
     for (PetscInt i = 0; i <= dim; ++i) {
-      DofLambda(coarse.element, dim, i, mu);
-      SimplexPoint(dim, Xh, mu, x);
+      SimplexPoint(dim, Xh, mu[i], x);
       Barycentric(dim, g, XH, x, lambda);
       f(c, i, pc, lambda);
     }
@@ -205,7 +209,7 @@ PetscErrorCode EvaluateOnCells(const Space &coarse, Vec uH, Vec lowerH, DM fine,
   PetscCall(DMPlexGetDepthStratum(fine, 0, &vStart, NULL));
   PetscCheck((PetscInt)parent.size() == cEnd - cStart, PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "parent map has %d entries for %d fine cells", (int)parent.size(), (int)(cEnd - cStart));
   // The fine cells' vertex coordinates, in the order of the cell tables a space on this mesh will have.
-  std::vector<Space::Coords> X(cEnd - cStart);
+  std::vector<PetscReal> X(nb * dim * (cEnd - cStart)); // nb * dim per cell, not a 12-entry Coords
   PetscCall(DMGetCoordinatesLocal(fine, &coords));
   PetscCall(DMGetCoordinateDM(fine, &cdm));
   PetscCall(DMGetLocalSection(cdm, &csec));
@@ -216,14 +220,14 @@ PetscErrorCode EvaluateOnCells(const Space &coarse, Vec uH, Vec lowerH, DM fine,
     for (PetscInt k = 0; k < nb; ++k) {
       PetscInt off;
       PetscCall(PetscSectionGetOffset(csec, verts[k], &off));
-      for (PetscInt d = 0; d < dim; ++d) X[c - cStart].x[k * dim + d] = PetscRealPart(xa[off + d]);
+      for (PetscInt d = 0; d < dim; ++d) X[(c - cStart) * nb * dim + k * dim + d] = PetscRealPart(xa[off + d]);
     }
   }
   PetscCall(VecRestoreArrayRead(coords, &xa));
   PetscCall(H.Get(uH, lowerH));
   cv.nb = nb;
   cv.data.assign((cEnd - cStart) * 2 * nb, 0);
-  ForEachFineDof(coarse, cEnd - cStart, parent, [&](PetscInt c) { return X[c]; }, [&](PetscInt c, PetscInt i, PetscInt pc, const PetscReal *lambda) {
+  ForEachFineDof(coarse, cEnd - cStart, parent, [&](PetscInt c) { return &X[c * nb * dim]; }, [&](PetscInt c, PetscInt i, PetscInt pc, const PetscReal *lambda) {
     cv.data[c * 2 * nb + i] = coarse.Value(pc, H.u, lambda);
     if (lowerH) cv.data[c * 2 * nb + nb + i] = OnActiveContact(coarse, pc, lambda, H.u, H.lower, H.tol);
   });

@@ -10,7 +10,9 @@
 //   - Prager-Synge: on the manufactured Poisson problems u = prod sin(pi x_i), the flux distance
 //     F = ||kappa^{-1/2}(kappa grad u_h - sigma)|| plus the oscillation of f bounds the true energy error
 //     (all three by quadrature of degree 8 here), at three mesh sizes; the efficiency index is printed;
-//   - the same F on 2 ranks as for the same scene built and solved on one rank (PETSC_COMM_SELF).
+//   - the same F on 2 ranks as for the same scene built and solved on one rank (PETSC_COMM_SELF);
+//   - the same flux from the 2D patch solve along the cells around each vertex (cycle or path, the
+//     default) as from the general sparse Cholesky solve of the same patch problems (to round-off).
 #include "signorini/contact.h"
 #include "signorini/estimate.h"
 #include "signorini/mesh.h"
@@ -262,6 +264,19 @@ static PetscErrorCode CheckSameAsOneRank(unit::Checker &ck, const std::string &t
   PetscFunctionReturn(0);
 }
 
+// The default patch solve (2D: along the cycle or path of cells around the vertex) against the general one.
+static PetscErrorCode CheckSameAsGeneric(unit::Checker &ck, const std::string &tag, const Solved &s)
+{
+  Reconstruction generic;
+  PetscReal      diff = 0, size = 0;
+  PetscFunctionBeginUser;
+  PetscCall(ReconstructP1(s.space, s.problem, s.sys, s.u, generic, true));
+  for (size_t i = 0; i < s.r.flux.size(); ++i) diff = std::max(diff, std::fabs(s.r.flux[i] - generic.flux[i])), size = std::max(size, std::fabs(generic.flux[i]));
+  diff = Max(PETSC_COMM_WORLD, diff), size = Max(PETSC_COMM_WORLD, size);
+  ck.Check(generic.flux.size() == s.r.flux.size() && diff <= 1e-12 * size, tag + ": the patch fluxes of the default solve = those of the general sparse Cholesky", "max difference %.3g, max flux %.3g", (double)diff, (double)size);
+  PetscFunctionReturn(0);
+}
+
 static MeshOptions Box(PetscInt dim, PetscInt n)
 {
   MeshOptions m;
@@ -302,6 +317,7 @@ static PetscErrorCode TestInvariants(unit::Checker &ck)
     PetscCall(CheckInvariants(ck, sc.name, s, sc));
     PetscCall(ComputeNorms<NoGrad>(s, nullptr, n));
     PetscCall(CheckSameAsOneRank(ck, sc.name, sc, n.F));
+    PetscCall(CheckSameAsGeneric(ck, sc.name, s));
     PetscCall(s.Destroy());
   }
   PetscFunctionReturn(0);
