@@ -184,21 +184,124 @@ PetscErrorCode ProjectOntoConstraints(const System &sys, const std::vector<Petsc
   PetscFunctionReturn(0);
 }
 
-// The residual norm the solve from u_D starts with (SNESVI's norm of F = A u - b on the inactive set, at
-// u_D projected onto the bounds). Its rtol is relative to this; a solve from a better initial guess stops
-// at the same absolute residual, so the guess saves work without changing the discrete solution.
+// SNESVI's residual norm at u: the norm of F = A u - b on the inactive set.
+static PetscErrorCode InactiveResidualNorm(SNES snes, const System &sys, Vec u, PetscReal *fnorm)
+{
+  Vec F;
+  PetscFunctionBeginUser;
+  PetscCall(VecDuplicate(u, &F));
+  PetscCall(MatMult(sys.A, u, F));
+  PetscCall(VecAXPY(F, -1.0, sys.b));
+  PetscCall(SNESVIComputeInactiveSetFnorm(snes, F, u, fnorm));
+  PetscCall(VecDestroy(&F));
+  PetscFunctionReturn(0);
+}
+
+// The residual norm the solve from u_D starts with (at u_D projected onto the bounds). Its rtol is
+// relative to this; a solve from a better initial guess stops at the same absolute residual, so the guess
+// saves work without changing the discrete solution.
 static PetscErrorCode StraightStartNorm(SNES snes, const System &sys, Vec lower, PetscReal *fnorm)
 {
-  Vec u0, F0;
+  Vec u0;
   PetscFunctionBeginUser;
   PetscCall(VecDuplicate(sys.uD, &u0));
-  PetscCall(VecDuplicate(sys.uD, &F0));
   PetscCall(VecPointwiseMax(u0, sys.uD, lower));
-  PetscCall(MatMult(sys.A, u0, F0));
-  PetscCall(VecAXPY(F0, -1.0, sys.b));
-  PetscCall(SNESVIComputeInactiveSetFnorm(snes, F0, u0, fnorm));
+  PetscCall(InactiveResidualNorm(snes, sys, u0, fnorm));
   PetscCall(VecDestroy(&u0));
-  PetscCall(VecDestroy(&F0));
+  PetscFunctionReturn(0);
+}
+
+// SolveOptions::energyError: the solve stops once its algebraic error in the energy norm is below the
+// bound. The problem is linear on the inactive set and CG minimises its energy, so the energy decrease of
+// one CG iteration is (|||e_{j-1}|||^2 - |||e_j|||^2) / 2 for the errors e of the linear solve before and
+// after it; where CG contracts the error by 0.7 or better per iteration (the multigrid V-cycle does by far),
+// |||e_j|||^2 <= 2 (J_{j-1} - J_j), so a decrease below bound^2 / 2 ends the linear solve with its error
+// below the bound (one iteration later than an oracle would stop). Its error is the Newton iterate's once
+// the active set is right, which the Newton iteration sees when the step left it as it was: it stops
+// there, and otherwise goes on, the full test still applying. The energy of the step's CG iterate x is
+// J(u - x) - J(u) = x.A x / 2 - F.x, one product with the block a CG iteration.
+struct EnergyStop {
+  PetscReal decrease = 0;       // the energy decrease that ends a linear solve, in the solver's units
+  PetscReal previous = 0;       // the energy of the previous CG iterate
+  bool      linear   = false;   // the current (last) linear solve ended by the energy test
+  bool      stopped  = false;   // the Newton iteration ended by it
+  Vec       Ax       = nullptr; // work vector of the block's size
+  IS        active   = nullptr; // the active set at the previous Newton iterate
+  void     *kspDefault = nullptr;
+  PetscErrorCode Destroy()
+  {
+    PetscFunctionBeginUser;
+    PetscCall(VecDestroy(&Ax));
+    PetscCall(ISDestroy(&active));
+    if (kspDefault) PetscCall(KSPConvergedDefaultDestroy(kspDefault));
+    kspDefault = nullptr;
+    PetscFunctionReturn(0);
+  }
+};
+
+static PetscErrorCode EnergyKSPTest(KSP ksp, PetscInt it, PetscReal rnorm, KSPConvergedReason *reason, void *ctx)
+{
+  auto       *e = static_cast<EnergyStop *>(ctx);
+  Mat         A;
+  Vec         x, b, with[2];
+  PetscScalar dots[2];
+  PetscInt    n = -1, m;
+  PetscFunctionBeginUser;
+  PetscCall(KSPConvergedDefault(ksp, it, rnorm, reason, e->kspDefault));
+  if (it == 0) e->linear = false;
+  PetscCall(KSPBuildSolution(ksp, NULL, &x));
+  PetscCall(KSPGetRhs(ksp, &b));
+  PetscCall(KSPGetOperators(ksp, &A, NULL));
+  PetscCall(VecGetSize(x, &m));
+  if (e->Ax) PetscCall(VecGetSize(e->Ax, &n));
+  if (n != m) {
+    PetscCall(VecDestroy(&e->Ax));
+    PetscCall(VecDuplicate(x, &e->Ax));
+  }
+  PetscCall(MatMult(A, x, e->Ax));
+  with[0] = e->Ax;
+  with[1] = b;
+  PetscCall(VecMDot(x, 2, with, dots));
+  const PetscReal energy = 0.5 * PetscRealPart(dots[0]) - PetscRealPart(dots[1]);
+  if (it > 0 && *reason == KSP_CONVERGED_ITERATING && e->previous - energy <= e->decrease) {
+    *reason   = KSP_CONVERGED_ATOL;
+    e->linear = true;
+  }
+  e->previous = energy;
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode EnergySNESTest(SNES snes, PetscInt it, PetscReal xnorm, PetscReal snorm, PetscReal fnorm, SNESConvergedReason *reason, void *ctx)
+{
+  auto     *e = static_cast<EnergyStop *>(ctx);
+  Vec       X, F;
+  IS        active;
+  PetscBool same = PETSC_FALSE;
+  PetscFunctionBeginUser;
+  PetscCall(SNESConvergedDefault(snes, it, xnorm, snorm, fnorm, reason, NULL));
+  PetscCall(SNESGetSolution(snes, &X));
+  PetscCall(SNESGetFunction(snes, &F, NULL, NULL));
+  PetscCall(SNESVIGetActiveSetIS(snes, X, F, &active));
+  if (e->active) PetscCall(ISEqual(e->active, active, &same));
+  PetscCall(ISDestroy(&e->active));
+  e->active = active;
+  if (it > 0 && *reason == SNES_CONVERGED_ITERATING && e->linear && same) {
+    *reason    = SNES_CONVERGED_ITS; // PETSc 3.18 has no reason for a user's test; stoppedBy says which
+    e->stopped = true;
+  }
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode EnergyStopInstall(SNES snes, PetscReal bound, const DataScale &scale, EnergyStop &e)
+{
+  KSP ksp;
+  PetscFunctionBeginUser;
+  // J in the solver's units is J / (U^2 R) (datascale.h)
+  e.decrease = std::ldexp(0.5 * bound * bound, -(int)(2 * scale.u + scale.rows));
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(KSPConvergedDefaultCreate(&e.kspDefault));
+  PetscCall(KSPSetConvergenceTest(ksp, EnergyKSPTest, &e, NULL));
+  PetscCall(SNESSetConvergenceTest(snes, EnergySNESTest, &e, NULL));
   PetscFunctionReturn(0);
 }
 
@@ -285,8 +388,9 @@ static PetscErrorCode LoosenedStoppingTest(SNES snes, PetscReal atol, PetscReal 
   PetscFunctionReturn(0);
 }
 
-static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &r, const SolveOptions &opts)
+static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &r, const SolveOptions &opts, const DataScale &scale)
 {
+  EnergyStop          energyStop;
   SNES                snes;
   KSP                 ksp;
   Vec                 upper, F;
@@ -335,20 +439,30 @@ static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &
     atol = target;
     rtol = 0;
   }
+  PetscReal stopAt = target;
+  if (opts.startRtol > 0) { // full multigrid's coarse levels: their residual reduced by startRtol is enough
+    PetscReal start;
+    PetscCall(InactiveResidualNorm(snes, sys, u, &start));
+    stopAt = atol = PetscMax(target, opts.startRtol * start);
+    rtol   = 0;
+  }
   PetscCall(SNESSetTolerances(snes, atol, rtol, stol, maxit, maxf));
+  if (opts.energyError > 0) PetscCall(EnergyStopInstall(snes, opts.energyError, scale, energyStop));
   // Inexact Newton: the problem is linear on the inactive set, so once the active set is right, one step
   // whose linear residual is below the target ends the solve; solving further would be wasted. The KSP
   // measures the true (unpreconditioned) residual, which is what the SNES test sees after the step.
   PetscReal kspRtol, kspAtol, kspDtol;
   PetscInt  kspMaxit;
   PetscCall(KSPGetTolerances(ksp, &kspRtol, &kspAtol, &kspDtol, &kspMaxit));
-  PetscCall(KSPSetTolerances(ksp, kspRtol, PetscMax(kspAtol, 0.5 * target), kspDtol, kspMaxit));
+  PetscCall(KSPSetTolerances(ksp, kspRtol, PetscMax(kspAtol, 0.5 * stopAt), kspDtol, kspMaxit));
   PetscCall(SNESSolve(snes, NULL, u));
   PetscCall(SNESGetConvergedReason(snes, &reason));
   PetscCall(SNESGetFunctionNorm(snes, &r.residual));
   PetscCall(SNESGetIterationNumber(snes, &r.newtonIts));
   PetscCall(SNESGetLinearSolveIterations(snes, &r.kspIts));
-  r.reason = SNESConvergedReasons[reason];
+  r.reason    = energyStop.stopped ? "CONVERGED_ENERGY_ERROR" : SNESConvergedReasons[reason];
+  r.stoppedBy = energyStop.stopped ? "energy_error" : stopAt > target && r.residual >= target ? "start_rtol" : "full";
+  PetscCall(energyStop.Destroy());
   PetscCall(SNESDestroy(&snes));
   PetscCall(MatDestroy(&J));
   PetscCall(VecDestroy(&upper));
@@ -574,7 +688,7 @@ PetscErrorCode Solve(const Space &space, const Problem &problem, const System &s
   // Start inside K_h: from u_D, or from the guess with u_D on Gamma_D and u >= psi on Gamma_C.
   if (!opts.initialGuess) PetscCall(VecCopy(sys.uD, u));
   PetscCall(ProjectOntoConstraints(sys, space.dirichletOwned, lower, u));
-  if (r.vi) PetscCall(SolveVI(sys, lower, u, r, opts));
+  if (r.vi) PetscCall(SolveVI(sys, lower, u, r, opts, scale));
   else PetscCall(SolveLinear(sys, u, r));
   PetscCall(SecondsSince(comm, t0, &r.solveSeconds));
   PetscCall(StagePop(Stage::Solve));
