@@ -184,55 +184,48 @@ PetscErrorCode ProjectOntoConstraints(const System &sys, const std::vector<Petsc
   PetscFunctionReturn(0);
 }
 
-// SNESVI's residual norm at u: the norm of F = A u - b on the inactive set.
-static PetscErrorCode InactiveResidualNorm(SNES snes, const System &sys, Vec u, PetscReal *fnorm)
-{
-  Vec F;
-  PetscFunctionBeginUser;
-  PetscCall(VecDuplicate(u, &F));
-  PetscCall(MatMult(sys.A, u, F));
-  PetscCall(VecAXPY(F, -1.0, sys.b));
-  PetscCall(SNESVIComputeInactiveSetFnorm(snes, F, u, fnorm));
-  PetscCall(VecDestroy(&F));
-  PetscFunctionReturn(0);
-}
-
-// The residual norm the solve from u_D starts with (at u_D projected onto the bounds). Its rtol is
-// relative to this; a solve from a better initial guess stops at the same absolute residual, so the guess
-// saves work without changing the discrete solution.
+// The residual norm the solve from u_D starts with (SNESVI's norm of F = A u - b on the inactive set, at
+// u_D projected onto the bounds). Its rtol is relative to this; a solve from a better initial guess stops
+// at the same absolute residual, so the guess saves work without changing the discrete solution.
 static PetscErrorCode StraightStartNorm(SNES snes, const System &sys, Vec lower, PetscReal *fnorm)
 {
-  Vec u0;
+  Vec u0, F0;
   PetscFunctionBeginUser;
   PetscCall(VecDuplicate(sys.uD, &u0));
+  PetscCall(VecDuplicate(sys.uD, &F0));
   PetscCall(VecPointwiseMax(u0, sys.uD, lower));
-  PetscCall(InactiveResidualNorm(snes, sys, u0, fnorm));
+  PetscCall(MatMult(sys.A, u0, F0));
+  PetscCall(VecAXPY(F0, -1.0, sys.b));
+  PetscCall(SNESVIComputeInactiveSetFnorm(snes, F0, u0, fnorm));
   PetscCall(VecDestroy(&u0));
+  PetscCall(VecDestroy(&F0));
   PetscFunctionReturn(0);
 }
 
-// SolveOptions::energyError: the solve stops once its algebraic error in the energy norm is below the
-// bound. The problem is linear on the inactive set and CG minimises its energy, so the energy decrease of
-// one CG iteration is (|||e_{j-1}|||^2 - |||e_j|||^2) / 2 for the errors e of the linear solve before and
-// after it; where CG contracts the error by 0.7 or better per iteration (the multigrid V-cycle does by far),
-// |||e_j|||^2 <= 2 (J_{j-1} - J_j), so a decrease below bound^2 / 2 ends the linear solve with its error
-// below the bound (one iteration later than an oracle would stop). Its error is the Newton iterate's once
-// the active set is right, which the Newton iteration sees when the step left it as it was: it stops
-// there, and otherwise goes on, the full test still applying. The energy of the step's CG iterate x is
-// J(u - x) - J(u) = x.A x / 2 - F.x, one product with the block a CG iteration.
+// SolveOptions::energyError and startError: the solve stops once its algebraic error in the energy norm
+// is below a bound. For an admissible v, J(v) - J(u_h) >= |||v - u_h|||^2 / 2 (u_h the discrete
+// solution), with equality once v has u_h's active set; so where an iteration contracts this excess
+// energy by 1/2 or better per step, the energy decrease of a step, J_{k-1} - J_k, is at least the excess
+// left after it, and a decrease below bound^2 / 2 leaves an error below the bound (one step later than an
+// oracle would stop). This holds for the Newton steps (full reduced-space steps from a prolongated guess:
+// the residual falls by 3 to 60 a step) and for the CG iterations inside one (the multigrid V-cycle: 10
+// and more an iteration): a Newton step's linear solve stops at the same decrease, so that it does not
+// solve beyond the bound either. With startError the bound is that fraction of the error of the start,
+// whose excess energy the first Newton step's decrease J_0 - J_1 measures. The energy of the step's CG
+// iterate x is J(u - x) - J(u) = x.A x / 2 - F.x, one product with the block an iteration; at a Newton
+// iterate J = (u.F - b.u) / 2 from the residual F the SNES holds.
 struct EnergyStop {
-  PetscReal decrease = 0;       // the energy decrease that ends a linear solve, in the solver's units
-  PetscReal previous = 0;       // the energy of the previous CG iterate
-  bool      linear   = false;   // the current (last) linear solve ended by the energy test
-  bool      stopped  = false;   // the Newton iteration ended by it
+  Vec       b        = nullptr; // the right-hand side (solver's units)
+  PetscReal decrease = 0;       // the energy decrease that ends a solve, in the solver's units (0: none yet)
+  PetscReal relative = 0;       // startError: decrease = relative^2 (J_0 - J_1), set after the first step
+  PetscReal cg = 0, newton = 0; // the energy of the previous CG iterate and of the previous Newton iterate
+  bool      stopped  = false;   // the Newton iteration ended by the energy test
   Vec       Ax       = nullptr; // work vector of the block's size
-  IS        active   = nullptr; // the active set at the previous Newton iterate
   void     *kspDefault = nullptr;
   PetscErrorCode Destroy()
   {
     PetscFunctionBeginUser;
     PetscCall(VecDestroy(&Ax));
-    PetscCall(ISDestroy(&active));
     if (kspDefault) PetscCall(KSPConvergedDefaultDestroy(kspDefault));
     kspDefault = nullptr;
     PetscFunctionReturn(0);
@@ -245,16 +238,12 @@ static PetscErrorCode EnergyKSPTest(KSP ksp, PetscInt it, PetscReal rnorm, KSPCo
   Mat         A;
   Vec         x, b, with[2];
   PetscScalar dots[2];
-  PetscInt    n = -1, m;
   PetscFunctionBeginUser;
   PetscCall(KSPConvergedDefault(ksp, it, rnorm, reason, e->kspDefault));
-  if (it == 0) e->linear = false;
   PetscCall(KSPBuildSolution(ksp, NULL, &x));
   PetscCall(KSPGetRhs(ksp, &b));
   PetscCall(KSPGetOperators(ksp, &A, NULL));
-  PetscCall(VecGetSize(x, &m));
-  if (e->Ax) PetscCall(VecGetSize(e->Ax, &n));
-  if (n != m) {
+  if (it == 0) { // every Newton step has its own block (layout)
     PetscCall(VecDestroy(&e->Ax));
     PetscCall(VecDuplicate(x, &e->Ax));
   }
@@ -263,41 +252,43 @@ static PetscErrorCode EnergyKSPTest(KSP ksp, PetscInt it, PetscReal rnorm, KSPCo
   with[1] = b;
   PetscCall(VecMDot(x, 2, with, dots));
   const PetscReal energy = 0.5 * PetscRealPart(dots[0]) - PetscRealPart(dots[1]);
-  if (it > 0 && *reason == KSP_CONVERGED_ITERATING && e->previous - energy <= e->decrease) {
-    *reason   = KSP_CONVERGED_ATOL;
-    e->linear = true;
-  }
-  e->previous = energy;
+  if (it > 0 && *reason == KSP_CONVERGED_ITERATING && e->cg - energy < e->decrease) *reason = KSP_CONVERGED_ATOL;
+  e->cg = energy;
   PetscFunctionReturn(0);
 }
 
 static PetscErrorCode EnergySNESTest(SNES snes, PetscInt it, PetscReal xnorm, PetscReal snorm, PetscReal fnorm, SNESConvergedReason *reason, void *ctx)
 {
-  auto     *e = static_cast<EnergyStop *>(ctx);
-  Vec       X, F;
-  IS        active;
-  PetscBool same = PETSC_FALSE;
+  auto       *e = static_cast<EnergyStop *>(ctx);
+  Vec         u, F, with[2];
+  PetscScalar dots[2];
   PetscFunctionBeginUser;
   PetscCall(SNESConvergedDefault(snes, it, xnorm, snorm, fnorm, reason, NULL));
-  PetscCall(SNESGetSolution(snes, &X));
+  PetscCall(SNESGetSolution(snes, &u));
   PetscCall(SNESGetFunction(snes, &F, NULL, NULL));
-  PetscCall(SNESVIGetActiveSetIS(snes, X, F, &active));
-  if (e->active) PetscCall(ISEqual(e->active, active, &same));
-  PetscCall(ISDestroy(&e->active));
-  e->active = active;
-  if (it > 0 && *reason == SNES_CONVERGED_ITERATING && e->linear && same) {
+  with[0] = F;
+  with[1] = e->b;
+  PetscCall(VecMDot(u, 2, with, dots));
+  const PetscReal energy = 0.5 * (PetscRealPart(dots[0]) - PetscRealPart(dots[1]));
+  // a step that raised the energy (the projection onto the bounds may) says nothing of the error
+  const PetscReal down = e->newton - energy;
+  if (it == 1 && e->relative > 0) e->decrease = e->relative * e->relative * PetscMax(down, 0);
+  else if (it > 0 && *reason == SNES_CONVERGED_ITERATING && down >= 0 && down < e->decrease) {
     *reason    = SNES_CONVERGED_ITS; // PETSc 3.18 has no reason for a user's test; stoppedBy says which
     e->stopped = true;
   }
+  e->newton = energy;
   PetscFunctionReturn(0);
 }
 
-static PetscErrorCode EnergyStopInstall(SNES snes, PetscReal bound, const DataScale &scale, EnergyStop &e)
+static PetscErrorCode EnergyStopInstall(SNES snes, const System &sys, const SolveOptions &opts, const DataScale &scale, EnergyStop &e)
 {
   KSP ksp;
   PetscFunctionBeginUser;
+  e.b        = sys.b;
+  e.relative = opts.startError;
   // J in the solver's units is J / (U^2 R) (datascale.h)
-  e.decrease = std::ldexp(0.5 * bound * bound, -(int)(2 * scale.u + scale.rows));
+  if (opts.energyError > 0) e.decrease = std::ldexp(0.5 * opts.energyError * opts.energyError, -(int)(2 * scale.u + scale.rows));
   PetscCall(SNESGetKSP(snes, &ksp));
   PetscCall(KSPConvergedDefaultCreate(&e.kspDefault));
   PetscCall(KSPSetConvergenceTest(ksp, EnergyKSPTest, &e, NULL));
@@ -439,29 +430,22 @@ static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &
     atol = target;
     rtol = 0;
   }
-  PetscReal stopAt = target;
-  if (opts.startRtol > 0) { // full multigrid's coarse levels: their residual reduced by startRtol is enough
-    PetscReal start;
-    PetscCall(InactiveResidualNorm(snes, sys, u, &start));
-    stopAt = atol = PetscMax(target, opts.startRtol * start);
-    rtol   = 0;
-  }
   PetscCall(SNESSetTolerances(snes, atol, rtol, stol, maxit, maxf));
-  if (opts.energyError > 0) PetscCall(EnergyStopInstall(snes, opts.energyError, scale, energyStop));
+  if (opts.energyError > 0 || opts.startError > 0) PetscCall(EnergyStopInstall(snes, sys, opts, scale, energyStop));
   // Inexact Newton: the problem is linear on the inactive set, so once the active set is right, one step
   // whose linear residual is below the target ends the solve; solving further would be wasted. The KSP
   // measures the true (unpreconditioned) residual, which is what the SNES test sees after the step.
   PetscReal kspRtol, kspAtol, kspDtol;
   PetscInt  kspMaxit;
   PetscCall(KSPGetTolerances(ksp, &kspRtol, &kspAtol, &kspDtol, &kspMaxit));
-  PetscCall(KSPSetTolerances(ksp, kspRtol, PetscMax(kspAtol, 0.5 * stopAt), kspDtol, kspMaxit));
+  PetscCall(KSPSetTolerances(ksp, kspRtol, PetscMax(kspAtol, 0.5 * target), kspDtol, kspMaxit));
   PetscCall(SNESSolve(snes, NULL, u));
   PetscCall(SNESGetConvergedReason(snes, &reason));
   PetscCall(SNESGetFunctionNorm(snes, &r.residual));
   PetscCall(SNESGetIterationNumber(snes, &r.newtonIts));
   PetscCall(SNESGetLinearSolveIterations(snes, &r.kspIts));
   r.reason    = energyStop.stopped ? "CONVERGED_ENERGY_ERROR" : SNESConvergedReasons[reason];
-  r.stoppedBy = energyStop.stopped ? "energy_error" : stopAt > target && r.residual >= target ? "start_rtol" : "full";
+  r.stoppedBy = !energyStop.stopped ? "full" : opts.energyError > 0 ? "energy_error" : "start_error";
   PetscCall(energyStop.Destroy());
   PetscCall(SNESDestroy(&snes));
   PetscCall(MatDestroy(&J));

@@ -11,8 +11,8 @@ PetscErrorCode NestedOptionsFromCommandLine(MPI_Comm comm, NestedOptions &o)
   PetscOptionsBegin(comm, "", "Nested iteration", "signorini");
   PetscCall(OptionBool(PetscOptionsObject, "-nested", "Solve on the coarser refinement levels first and start each level from the prolongated coarser solution", o.enabled));
   PetscCall(OptionInt(PetscOptionsObject, "-nested_levels", "Coarse levels solved before the finest one (-1: all refinement levels)", o.levels, -1, PETSC_MAX_INT));
-  PetscCall(OptionEList(PetscOptionsObject, "-solve_to", "Where each level of the nested iteration stops: fmg (full multigrid: coarse levels to -solve_to_rtol of their start residual, the finest to the full test), full (every level to the full test), discretization (every level, the finest included, to -solve_to_fraction of its estimated discretization error)", {"fmg", "full", "discretization"}, o.solveTo));
-  PetscCall(OptionReal(PetscOptionsObject, "-solve_to_rtol", "-solve_to fmg: a coarse level stops once its residual is this fraction of the residual at its start", o.rtol, 0, 1));
+  PetscCall(OptionEList(PetscOptionsObject, "-solve_to", "Where each level of the nested iteration stops: fmg (full multigrid: coarse levels to -solve_to_rtol of the error of their start, the finest to the full test), full (every level to the full test), discretization (every level, the finest included, to -solve_to_fraction of its estimated discretization error)", {"fmg", "full", "discretization"}, o.solveTo));
+  PetscCall(OptionReal(PetscOptionsObject, "-solve_to_rtol", "-solve_to fmg: a coarse level stops once its estimated algebraic error in the energy norm is this fraction of the error of its start (the prolongated guess)", o.rtol, 0, 1));
   PetscCall(OptionReal(PetscOptionsObject, "-solve_to_fraction", "-solve_to discretization: a level stops once its estimated algebraic error in the energy norm is this fraction of its estimated discretization error", o.fraction, 0, 1));
   PetscOptionsEnd();
   if (!(o.rtol > 0 && o.rtol < 1)) SIGNORINI_INPUT_ERROR(comm, "option -solve_to_rtol: must be in (0, 1), got %g", (double)o.rtol);
@@ -82,7 +82,7 @@ PetscErrorCode NestedIteration::Next(Step &step, bool &more)
     return withMesh ? withMesh(space) : 0;
   };
   const bool finest = level_ + 1 == levels_.Count();
-  if (o_.solveTo == NestedOptions::Fmg && !finest) step.options.solve.startRtol = o_.rtol;
+  if (o_.solveTo == NestedOptions::Fmg && !finest) step.options.solve.startError = o_.rtol;
   energyError_ = o_.solveTo == NestedOptions::Discretization && level_ > 0 ? o_.fraction * kErrorPerRefinement * eta_ : 0;
   step.options.solve.energyError = energyError_;
   // the KKT conditions then hold to the algebraic error asked for (still reported), not to the full test

@@ -33,7 +33,7 @@ for name, mesh in cases:
             c.check(fmg["kkt"]["active"] == full["kkt"]["active"], "%s: active set %d vs %d" % (tag, fmg["kkt"]["active"], full["kkt"]["active"]))
             lf, lg = full["solver"]["levels"], fmg["solver"]["levels"]
             c.check(full["solver"]["solve_to"] == "full" and fmg["solver"]["solve_to"] == "fmg" and all(l["stopped_by"] == "full" for l in lf)
-                    and lg[-1]["stopped_by"] == "full" and all(l["stopped_by"] in ("start_rtol", "full") for l in lg[:-1]),
+                    and lg[-1]["stopped_by"] == "full" and all(l["stopped_by"] in ("start_error", "full") for l in lg[:-1]),
                     "%s: the summary names the stopping (fmg levels: %s)" % (tag, [l["stopped_by"] for l in lg]))
             kf, kg = sum(l["ksp"] for l in lf[:-1]), sum(l["ksp"] for l in lg[:-1])
             c.check(kg <= kf, "%s: CG iterations on the coarse levels, fmg %d <= full %d" % (tag, kg, kf))

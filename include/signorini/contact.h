@@ -38,7 +38,7 @@ struct SolveResult {
   PetscReal   kktReached = 0, kktDefault = 0;
   std::string loosened; // the stopping options the user set looser than the defaults ("-snes_rtol 0.001")
   PetscInt    scaleExponent = 0; // the solve worked on u / 2^scaleExponent (DataScale::u, datascale.h)
-  std::string stoppedBy = "full"; // which test ended the solve: full, start_rtol or energy_error (SolveOptions)
+  std::string stoppedBy = "full"; // which test ended the solve: full, start_error or energy_error (SolveOptions)
   PetscReal stationarity = 0; // max |r| over DOFs that are neither Dirichlet nor contact, relative to max |load|
   PetscReal energy = 0;
   // Nested iteration: one entry per level solved, coarsest first, the finest (this solve) last; empty
@@ -63,8 +63,9 @@ struct SolveOptions {
   PetscReal kktTolerance  = 1e-6;  // -kkt_tolerance: a larger relative KKT residual is reported as a warning
   AmgReuseOptions amgReuse;
   // Where the solve may stop before the full test (nested.h, -solve_to); 0: not at all.
-  PetscReal startRtol   = 0; // once the residual is this fraction of the residual at the start (u, projected)
-  PetscReal energyError = 0; // once the algebraic error |||u - u_h||| is estimated below this (see SolveVI)
+  // Each once the algebraic error |||u - u_h||| is estimated below (contact.cpp, EnergyStop):
+  PetscReal startError  = 0; // this fraction of the error of the start (estimated by the first Newton step)
+  PetscReal energyError = 0; // this bound
 };
 PetscErrorCode SolveOptionsFromCommandLine(MPI_Comm comm, SolveOptions &o);
 
@@ -86,7 +87,7 @@ PetscErrorCode ProjectOntoConstraints(const System &sys, const std::vector<Petsc
 // from u_D (projected onto K_h); with it, from u with its Dirichlet DOFs set to u_D and its contact DOFs
 // projected onto u >= psi. Either way the solve stops at the same absolute residual, the one the
 // start from u_D would reach (its SNES rtol times its initial residual), so that a good initial guess
-// saves work without changing the discrete solution beyond solver tolerance; only opts.startRtol and
+// saves work without changing the discrete solution beyond solver tolerance; only opts.startError and
 // opts.energyError (nested iteration's -solve_to) let it stop earlier. The solvers work on u and on
 // the equations divided by powers of 2 near their sizes (datascale.h), so the iterations do not depend on
 // the size of the data, and PETSc's absolute options (-snes_atol, -ksp_atol, -snes_vi_zero_tolerance,

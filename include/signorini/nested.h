@@ -5,11 +5,14 @@
 // Newton steps there stays small as the mesh is refined.
 //
 // Where each level stops (-solve_to):
-//   fmg (default, full multigrid): a coarse level is only the initial guess of the next one, whose own
-//     error is about its discretization error, so it stops once its residual is -solve_to_rtol times the
-//     residual it started from (the prolongated guess, whose residual is the interpolation error of the
-//     level before); the finest level stops at the absolute residual its own solve from u_D would reach
-//     (see Solve), so the final discrete solution is the same to solver tolerance as with `full`.
+//   fmg (default, full multigrid): a coarse level is only the initial guess of the next one, so it need
+//     not be solved far below its discretization error: it stops once its algebraic error (estimated from
+//     the energy decrease of its Newton steps and CG iterations, contact.cpp) is -solve_to_rtol times the
+//     error of its start, the prolongated guess, whose error is about the discretization error of the
+//     level before (measured by the energy decrease of the first Newton step); usually two Newton steps
+//     with one CG iteration each. The finest level stops at the absolute residual its own solve from u_D
+//     would reach (see Solve), so the final discrete solution is the same to solver tolerance as with
+//     `full`.
 //   full: every level as the finest (the nested iteration before full multigrid).
 //   discretization: every level from the first prolongated one on, the finest included, stops once its
 //     algebraic error in the energy norm is estimated below -solve_to_fraction times its discretization
@@ -30,7 +33,7 @@ struct NestedOptions {
   PetscInt levels  = -1;   // -nested_levels: coarse levels solved before the finest one (-1: every refinement level)
   enum SolveTo { Fmg, Full, Discretization };
   PetscInt  solveTo  = Fmg;  // -solve_to (above)
-  PetscReal rtol     = 0.1;  // -solve_to_rtol: fmg's coarse levels (0.1: one Newton step, one or two V-cycles)
+  PetscReal rtol     = 0.1;  // -solve_to_rtol: fmg's coarse levels
   PetscReal fraction = 0.1;  // -solve_to_fraction: discretization's algebraic error / discretization error
 };
 const char *SolveToName(PetscInt solveTo);
