@@ -431,7 +431,9 @@ static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &
     rtol = 0;
   }
   PetscCall(SNESSetTolerances(snes, atol, rtol, stol, maxit, maxf));
-  if (opts.energyError > 0 || opts.startError > 0) PetscCall(EnergyStopInstall(snes, sys, opts, scale, energyStop));
+  PetscBool rsls; // the energies need F = A u - b and CG on blocks of A: the reduced-space solver's
+  PetscCall(PetscObjectTypeCompare((PetscObject)snes, SNESVINEWTONRSLS, &rsls));
+  if (rsls && (opts.energyError > 0 || opts.startError > 0)) PetscCall(EnergyStopInstall(snes, sys, opts, scale, energyStop));
   // Inexact Newton: the problem is linear on the inactive set, so once the active set is right, one step
   // whose linear residual is below the target ends the solve; solving further would be wasted. The KSP
   // measures the true (unpreconditioned) residual, which is what the SNES test sees after the step.

@@ -19,6 +19,8 @@
 //     error, predicted as half the a posteriori estimate eta of the level before (estimate.h; the energy
 //     error of P1 and CR halves with h); the coarsest level solves to the full test. The estimate is
 //     then computed on every level.
+// The early stops need the reduced-space solver (the default); with -snes_type vinewtonssls every level
+// stops at the full test (the summary's stopped_by says which test stopped each level).
 #pragma once
 
 #include "signorini/hierarchy.h"
