@@ -153,7 +153,7 @@ static PetscErrorCode Run(MPI_Comm comm)
     meshInfo.cellsPerRank = strategy.cellsPerRank;
     if (!s.output.file.empty()) PetscCall(OutputBegin(fine.space, s.output, output));
   } else if (nested) {
-    NestedIteration strategy(levels, s.problem, po);
+    NestedIteration strategy(levels, s.problem, po, s.nested);
     PetscCall(SolveMeshes(s.problem, strategy));
     fine = std::move(strategy.finest);
   } else {

@@ -11,11 +11,26 @@ PetscErrorCode NestedOptionsFromCommandLine(MPI_Comm comm, NestedOptions &o)
   PetscOptionsBegin(comm, "", "Nested iteration", "signorini");
   PetscCall(OptionBool(PetscOptionsObject, "-nested", "Solve on the coarser refinement levels first and start each level from the prolongated coarser solution", o.enabled));
   PetscCall(OptionInt(PetscOptionsObject, "-nested_levels", "Coarse levels solved before the finest one (-1: all refinement levels)", o.levels, -1, PETSC_MAX_INT));
+  PetscCall(OptionEList(PetscOptionsObject, "-solve_to", "Where each level of the nested iteration stops: fmg (full multigrid: coarse levels to -solve_to_rtol of the error of their start, the finest to the full test), full (every level to the full test), discretization (every level, the finest included, to -solve_to_fraction of its estimated discretization error)", {"fmg", "full", "discretization"}, o.solveTo));
+  PetscCall(OptionReal(PetscOptionsObject, "-solve_to_rtol", "-solve_to fmg: a coarse level stops once its estimated algebraic error in the energy norm is this fraction of the error of its start (the prolongated guess)", o.rtol, 0, 1));
+  PetscCall(OptionReal(PetscOptionsObject, "-solve_to_fraction", "-solve_to discretization: a level stops once its estimated algebraic error in the energy norm is this fraction of its estimated discretization error", o.fraction, 0, 1));
   PetscOptionsEnd();
+  if (!(o.rtol > 0 && o.rtol < 1)) SIGNORINI_INPUT_ERROR(comm, "option -solve_to_rtol: must be in (0, 1), got %g", (double)o.rtol);
+  if (!(o.fraction > 0 && o.fraction < 1)) SIGNORINI_INPUT_ERROR(comm, "option -solve_to_fraction: must be in (0, 1), got %g", (double)o.fraction);
   PetscFunctionReturn(0);
 }
 
+const char *SolveToName(PetscInt solveTo)
+{
+  static const char *names[] = {"fmg", "full", "discretization"};
+  return names[solveTo];
+}
+
 namespace {
+// The energy error of P1 and CR halves with h: the predicted discretization error of a level from the
+// estimate of the level before.
+constexpr PetscReal kErrorPerRefinement = 0.5;
+
 // uh = prolongation of the coarse level's solution with its active set (Solve projects it onto the fine
 // level's constraints). Part of the Solve stage; `seconds` is its wall time (max over ranks).
 PetscErrorCode ProlongateLevel(const MeshSolution &coarse, const Space &fine, const std::vector<PetscInt> &parent, const Problem &problem, Vec uh, double &seconds)
@@ -47,6 +62,7 @@ SolveResult::Level LevelSummary(const Space &space, const SolveResult &r, double
   info.amgSetups    = r.amg.setups;
   info.setupSeconds = setupSeconds;
   info.solveSeconds = r.solveSeconds + prolongSeconds;
+  info.stoppedBy    = r.stoppedBy;
   return info;
 }
 } // namespace
@@ -65,11 +81,17 @@ PetscErrorCode NestedIteration::Next(Step &step, bool &more)
     PetscCall(CoarseSpaceTransfers(l, space));
     return withMesh ? withMesh(space) : 0;
   };
-  if (level_ + 1 < levels_.Count()) {
+  const bool finest = level_ + 1 == levels_.Count();
+  if (o_.solveTo == NestedOptions::Fmg && !finest) step.options.solve.startError = o_.rtol;
+  energyError_ = o_.solveTo == NestedOptions::Discretization && level_ > 0 ? o_.fraction * kErrorPerRefinement * eta_ : 0;
+  step.options.solve.energyError = energyError_;
+  // the KKT conditions then hold to the algebraic error asked for (still reported), not to the full test
+  if (energyError_ > 0) step.options.kktHint = false;
+  if (!finest) {
     PipelineOptions &lo = step.options; // the user's solver settings, without the linear comparison (finest level only)
     lo.solve.compareLinear = false;
     lo.kktHint             = false;
-    lo.estimate.enabled    = false; // the estimate is of the finest solution
+    lo.estimate.enabled    = o_.solveTo == NestedOptions::Discretization; // for the next level's stopping test only
     lo.solve.initialGuess  = false;
     lo.keepMesh            = false;
     lo.withMesh            = [this, l = level_](const Space &space) -> PetscErrorCode {
@@ -144,6 +166,8 @@ PetscErrorCode NestedIteration::Solved(MeshSolution &&m)
 {
   PetscFunctionBeginUser;
   summary_.push_back(LevelSummary(m.space, m.result, m.setupSeconds, prolongSeconds_));
+  summary_.back().energyError = energyError_;
+  eta_ = m.estimate.eta;
   if (level_ + 1 < levels_.Count()) {
     amg_.setups += m.result.amg.setups;
     amg_.reuses += m.result.amg.reuses;
@@ -157,7 +181,8 @@ PetscErrorCode NestedIteration::Solved(MeshSolution &&m)
   SolveResult &r = finest.result;
   r.solveSeconds = 0;
   for (const SolveResult::Level &s : summary_) r.solveSeconds += s.solveSeconds;
-  r.levels = std::move(summary_);
+  r.levels   = std::move(summary_);
+  r.stopping = SolveToName(o_.solveTo);
   r.amg.setups += amg_.setups;
   r.amg.reuses += amg_.reuses;
   PetscFunctionReturn(0);

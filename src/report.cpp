@@ -83,9 +83,10 @@ PetscErrorCode ReportPrint(MPI_Comm comm, const Report &r)
   if (r.solve.vi) {
     o << Format("  solve: SNESVI %s, %d Newton / %d KSP iterations\n", r.solve.reason.c_str(), (int)r.solve.newtonIts, (int)r.solve.kspIts);
     if (r.solve.amg.setups + r.solve.amg.reuses > 0) o << Format("  preconditioner of the inactive-set blocks set up %d times, re-used in %d Newton steps\n", (int)r.solve.amg.setups, (int)r.solve.amg.reuses);
+    if (!r.solve.levels.empty()) o << Format("  nested iteration, -solve_to %s\n", r.solve.stopping.c_str());
     for (size_t l = 0; l < r.solve.levels.size(); ++l) {
       const SolveResult::Level &v = r.solve.levels[l];
-      o << Format("  nested level %d: %d DOFs, %d Newton / %d KSP iterations, set-up %.3f s, solve %.3f s\n", (int)l, (int)v.dofs, (int)v.newtonIts, (int)v.kspIts, v.setupSeconds, v.solveSeconds);
+      o << Format("  nested level %d: %d DOFs, %d Newton / %d KSP iterations, set-up %.3f s, solve %.3f s, stopped by %s\n", (int)l, (int)v.dofs, (int)v.newtonIts, (int)v.kspIts, v.setupSeconds, v.solveSeconds, v.stoppedBy.c_str());
     }
     o << Format("  KKT on Gamma_C: min(u-psi) %.3e, min pressure %.3e, max |(u-psi) pressure| %.3e (worst relative %.1e), active %d of %d\n", (double)r.solve.primal, (double)r.solve.dual, (double)r.solve.complementarity, (double)r.solve.kktRelative, (int)r.solve.active, (int)r.contactDofs);
   } else {
@@ -174,9 +175,9 @@ PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string
     for (size_t l = 0; l < r.solve.levels.size(); ++l) {
       const SolveResult::Level &v = r.solve.levels[l];
       newton += v.newtonIts, ksp += v.kspIts;
-      o << (l ? ", " : "") << "{\"dofs\": " << v.dofs << ", \"newton\": " << v.newtonIts << ", \"ksp\": " << v.kspIts << ", \"amg_setups\": " << v.amgSetups << ", \"setup_seconds\": " << Num(v.setupSeconds) << ", \"seconds\": " << Num(v.solveSeconds) << "}";
+      o << (l ? ", " : "") << "{\"dofs\": " << v.dofs << ", \"newton\": " << v.newtonIts << ", \"ksp\": " << v.kspIts << ", \"amg_setups\": " << v.amgSetups << ", \"setup_seconds\": " << Num(v.setupSeconds) << ", \"seconds\": " << Num(v.solveSeconds) << ", \"stopped_by\": " << Str(v.stoppedBy) << ", \"energy_error_target\": " << Num(v.energyError) << "}";
     }
-    o << "], \"newton_iterations_total\": " << newton << ", \"ksp_iterations_total\": " << ksp;
+    o << "], \"newton_iterations_total\": " << newton << ", \"ksp_iterations_total\": " << ksp << ", \"solve_to\": " << Str(r.solve.stopping);
   }
   if (r.solve.linearSeconds >= 0) o << ", \"linear_solve_seconds\": " << Num(r.solve.linearSeconds) << ", \"linear_ksp_iterations\": " << r.solve.linearKspIts << ", \"solve_linear_ratio\": " << Num(r.solve.solveSeconds / r.solve.linearSeconds);
   o << "},\n";

@@ -38,15 +38,19 @@ struct SolveResult {
   PetscReal   kktReached = 0, kktDefault = 0;
   std::string loosened; // the stopping options the user set looser than the defaults ("-snes_rtol 0.001")
   PetscInt    scaleExponent = 0; // the solve worked on u / 2^scaleExponent (DataScale::u, datascale.h)
+  std::string stoppedBy = "full"; // which test ended the solve: full, start_error or energy_error (SolveOptions)
   PetscReal stationarity = 0; // max |r| over DOFs that are neither Dirichlet nor contact, relative to max |load|
   PetscReal energy = 0;
   // Nested iteration: one entry per level solved, coarsest first, the finest (this solve) last; empty
   // without nested iteration. newtonIts/kspIts above are the finest level's.
   struct Level {
-    PetscInt dofs = 0, newtonIts = 0, kspIts = 0, amgSetups = 0;
-    double   setupSeconds = 0, solveSeconds = 0; // space + assembly, and the solve (prolongation included)
+    PetscInt    dofs = 0, newtonIts = 0, kspIts = 0, amgSetups = 0;
+    double      setupSeconds = 0, solveSeconds = 0; // space + assembly, and the solve (prolongation included)
+    std::string stoppedBy;                          // as SolveResult::stoppedBy
+    PetscReal   energyError = 0;                    // SolveOptions::energyError of the level (0: none)
   };
   std::vector<Level> levels;
+  std::string        stopping; // nested iteration: -solve_to (nested.h)
   double             solveSeconds  = 0;  // the whole contact solve (all levels' solves), max over ranks
   double             linearSeconds = -1; // -compare_linear: one CG + BoomerAMG solve of A u = b (-1: not run)
   PetscInt           linearKspIts  = 0;
@@ -58,6 +62,10 @@ struct SolveOptions {
   bool      compareLinear = false; // -compare_linear: also time one linear solve of A u = b
   PetscReal kktTolerance  = 1e-6;  // -kkt_tolerance: a larger relative KKT residual is reported as a warning
   AmgReuseOptions amgReuse;
+  // Where the solve may stop before the full test (nested.h, -solve_to); 0: not at all.
+  // Each once the algebraic error |||u - u_h||| is estimated below (contact.cpp, EnergyStop):
+  PetscReal startError  = 0; // this fraction of the error of the start (estimated by the first Newton step)
+  PetscReal energyError = 0; // this bound
 };
 PetscErrorCode SolveOptionsFromCommandLine(MPI_Comm comm, SolveOptions &o);
 
@@ -79,7 +87,8 @@ PetscErrorCode ProjectOntoConstraints(const System &sys, const std::vector<Petsc
 // from u_D (projected onto K_h); with it, from u with its Dirichlet DOFs set to u_D and its contact DOFs
 // projected onto u >= psi. Either way the solve stops at the same absolute residual, the one the
 // start from u_D would reach (its SNES rtol times its initial residual), so that a good initial guess
-// saves work without changing the discrete solution beyond solver tolerance. The solvers work on u and on
+// saves work without changing the discrete solution beyond solver tolerance; only opts.startError and
+// opts.energyError (nested iteration's -solve_to) let it stop earlier. The solvers work on u and on
 // the equations divided by powers of 2 near their sizes (datascale.h), so the iterations do not depend on
 // the size of the data, and PETSc's absolute options (-snes_atol, -ksp_atol, -snes_vi_zero_tolerance,
 // -snes_linesearch_maxstep) are relative to it. Pushes the Solve stage.

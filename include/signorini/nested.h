@@ -2,9 +2,25 @@
 // hierarchy first, each solution is prolongated to the next finer mesh (values and active set) and
 // projected onto its constraints, and serves there as the initial guess, up to the finest mesh. The
 // active set is then nearly right before the first Newton step on the finest mesh, so the number of
-// Newton steps there stays small as the mesh is refined. Every level stops at the absolute residual its
-// own solve from u_D would reach (see Solve), so the final discrete solution is the same to solver
-// tolerance as without nested iteration.
+// Newton steps there stays small as the mesh is refined.
+//
+// Where each level stops (-solve_to):
+//   fmg (default, full multigrid): a coarse level is only the initial guess of the next one, so it need
+//     not be solved far below its discretization error: it stops once its algebraic error (estimated from
+//     the energy decrease of its Newton steps and CG iterations, contact.cpp) is -solve_to_rtol times the
+//     error of its start, the prolongated guess, whose error is about the discretization error of the
+//     level before (measured by the energy decrease of the first Newton step); usually two Newton steps
+//     with one CG iteration each. The finest level stops at the absolute residual its own solve from u_D
+//     would reach (see Solve), so the final discrete solution is the same to solver tolerance as with
+//     `full`.
+//   full: every level as the finest (the nested iteration before full multigrid).
+//   discretization: every level from the first prolongated one on, the finest included, stops once its
+//     algebraic error in the energy norm is estimated below -solve_to_fraction times its discretization
+//     error, predicted as half the a posteriori estimate eta of the level before (estimate.h; the energy
+//     error of P1 and CR halves with h); the coarsest level solves to the full test. The estimate is
+//     then computed on every level.
+// The early stops need the reduced-space solver (the default); with -snes_type vinewtonssls every level
+// stops at the full test (the summary's stopped_by says which test stopped each level).
 #pragma once
 
 #include "signorini/hierarchy.h"
@@ -17,7 +33,12 @@ namespace signorini {
 struct NestedOptions {
   bool     enabled = true; // -nested: used when there is a contact part and a coarser level (-refine > 0)
   PetscInt levels  = -1;   // -nested_levels: coarse levels solved before the finest one (-1: every refinement level)
+  enum SolveTo { Fmg, Full, Discretization };
+  PetscInt  solveTo  = Fmg;  // -solve_to (above)
+  PetscReal rtol     = 0.1;  // -solve_to_rtol: fmg's coarse levels
+  PetscReal fraction = 0.1;  // -solve_to_fraction: discretization's algebraic error / discretization error
 };
+const char *SolveToName(PetscInt solveTo);
 PetscErrorCode NestedOptionsFromCommandLine(MPI_Comm comm, NestedOptions &o);
 
 // The prolongation of each level's solution with its active set to the next: transfer.h.
@@ -29,7 +50,7 @@ PetscErrorCode NestedOptionsFromCommandLine(MPI_Comm comm, NestedOptions &o);
 // (fine.withMesh frees the finest). Each parent map is dropped once used, and each coarse solution is
 // freed once carried (its system already when solved), so that the solves, and above all the finest one,
 // the peak of the run's memory, do not hold them. `finest` receives the finest solution, its result with
-// one entry per level in result.levels, the time of all solves together in result.solveSeconds and the
+// one entry per level in result.levels (with where each stopped, -solve_to), the time of all solves together in result.solveSeconds and the
 // AMG statistics of all levels. With -vi_pc_type mg, the prolongation matrix between each pair of levels
 // is assembled when the finer level is carried to (before the coarse space is freed) and kept, as the only
 // data of the coarse levels, until the finest level is solved: the multigrid of every level's solve uses
@@ -37,7 +58,7 @@ PetscErrorCode NestedOptionsFromCommandLine(MPI_Comm comm, NestedOptions &o);
 // mesh and on through the P1 levels (CoarseSpaceTransfers, nested.cpp).
 class NestedIteration : public MeshStrategy {
 public:
-  NestedIteration(MeshLevels &levels, const Problem &problem, const PipelineOptions &fine) : levels_(levels), problem_(problem), fine_(fine) {}
+  NestedIteration(MeshLevels &levels, const Problem &problem, const PipelineOptions &fine, const NestedOptions &o) : levels_(levels), problem_(problem), fine_(fine), o_(o) {}
   PetscErrorCode Next(Step &step, bool &more) override;
   PetscErrorCode Carry(MeshSolution &cur, bool &carried) override;
   PetscErrorCode Solved(MeshSolution &&m) override;
@@ -47,6 +68,9 @@ private:
   MeshLevels                     &levels_;
   const Problem                  &problem_;
   PipelineOptions                 fine_;
+  NestedOptions                   o_;
+  PetscReal                       eta_ = 0;    // -solve_to discretization: the estimate of the level before,
+  PetscReal                       energyError_ = 0; // and the algebraic error this level may keep
   PetscInt                        level_ = -1; // the level of the step under way
   MeshSolution                    prev_;       // the coarser solution until it is carried
   std::vector<SolveResult::Level> summary_;
