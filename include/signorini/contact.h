@@ -10,6 +10,7 @@
 
 #include "signorini/amgreuse.h"
 #include "signorini/assembly.h"
+#include "signorini/release.h"
 
 namespace signorini {
 
@@ -58,6 +59,7 @@ struct SolveOptions {
   bool      compareLinear = false; // -compare_linear: also time one linear solve of A u = b
   PetscReal kktTolerance  = 1e-6;  // -kkt_tolerance: a larger relative KKT residual is reported as a warning
   AmgReuseOptions amgReuse;
+  ReleaseOptions  release; // only for a solve without initialGuess
 };
 PetscErrorCode SolveOptionsFromCommandLine(MPI_Comm comm, SolveOptions &o);
 
