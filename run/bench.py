@@ -7,6 +7,7 @@ compared with one plain CG + BoomerAMG solve of the same operator measured in th
   run/bench --peer dolfinx     # whole process against dolfinx on the same discrete problem (run/peer.py)
   run/bench --estimate         # estimate / solve and adaptive overhead / solve per step (run/bench_estimate.py)
   run/bench --error            # exact-error integration / solve on the manufactured scenes
+  run/bench --nohier           # contact / linear solve on a Gmsh file without a hierarchy (run/bench_nohier.py)
 
 Scenes: paper-5.1 in 2D (N x N squares), paper-5.1-3d in 3D (N x N x N cubes, 6 tetrahedra each).
 Each run's summary JSON and -log_view are kept in DIR (default results/bench). Prints one row per run:
@@ -269,6 +270,7 @@ def main():
     ap.add_argument("--peer", choices=["dolfinx"], help="instead: whole process against dolfinx on the same scene and mesh (run/peer.py: --peer-elements, --peer-n2, --peer-n3)")
     ap.add_argument("--error", action="store_true", help="instead: the exact-error integration against the solve on the manufactured scenes")
     ap.add_argument("--estimate", action="store_true", help="instead: the estimate's cost and the adaptive overhead per step, as ratios to the solve of the same run (run/bench_estimate.py: --est-n2, --est-n3, --adapt-n2, --adapt-n3, --adapt-steps)")
+    ap.add_argument("--nohier", action="store_true", help="instead: contact solve / linear solve on a fine Gmsh file read without -refine (run/bench_nohier.py: --nohier-n2)")
     args, extra = ap.parse_known_args()
     if args.repeat < 1:
         ap.error("--repeat: %d is not a positive count" % args.repeat)
@@ -290,6 +292,10 @@ def main():
         import bench_estimate
 
         return bench_estimate.main(args, extra)
+    if args.nohier:
+        import bench_nohier
+
+        return bench_nohier.main(args, extra)
     rows = []
     print(header(), flush=True)
     for dim in dims:

@@ -167,6 +167,8 @@ PetscErrorCode SolveOptionsFromCommandLine(MPI_Comm comm, SolveOptions &o)
   PetscCall(OptionBool(PetscOptionsObject, "-compare_linear", "After the solve, time one linear solve of the same operator and right-hand side (same KSP/PC options) for comparison", o.compareLinear));
   PetscOptionsEnd();
   PetscCall(AmgReuseOptionsFromCommandLine(comm, o.amgReuse));
+  PetscCall(ReleaseOptionsFromCommandLine(comm, o.release));
+  o.release.maxChanged = o.amgReuse.maxChanged; // one notion of an active set that still moves
   PetscFunctionReturn(0);
 }
 
@@ -441,7 +443,15 @@ static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &
   PetscInt  kspMaxit;
   PetscCall(KSPGetTolerances(ksp, &kspRtol, &kspAtol, &kspDtol, &kspMaxit));
   PetscCall(KSPSetTolerances(ksp, kspRtol, PetscMax(kspAtol, 0.5 * target), kspDtol, kspMaxit));
+  // From u_D the active set starts far off (see release.h); a nested-iteration guess carries a good one.
+  Release release;
+  if (!opts.initialGuess) {
+    PetscReal zeroTol = kZeroTolerance;
+    PetscCall(PetscOptionsGetReal(NULL, NULL, "-snes_vi_zero_tolerance", &zeroTol, NULL));
+    PetscCall(ReleaseInstall(snes, sys.A, sys.b, lower, zeroTol, opts.release, release));
+  }
   PetscCall(SNESSolve(snes, NULL, u));
+  PetscCall(release.Destroy());
   PetscCall(SNESGetConvergedReason(snes, &reason));
   PetscCall(SNESGetFunctionNorm(snes, &r.residual));
   PetscCall(SNESGetIterationNumber(snes, &r.newtonIts));

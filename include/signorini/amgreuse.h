@@ -16,14 +16,15 @@
 // Policy, per Newton step:
 //  - the active set still moves (more than maxChanged DOFs changed since the previous step, or this is
 //    the first step): the step only has to show where the set goes next, so its solve stops at the
-//    relative tolerance inexactRtol and re-uses the current set-up whatever changed; from a good start
-//    (nested iteration: the guess carries the coarser level's active set) only the first step counts
-//    as moving, since later changes are near the free boundary only (3D paper-5.1 CR N = 48: finest
-//    level 3 Newton steps / 37 CG iterations -> 2 / 20, the same energy to 13 digits);
-//  - the active set has settled: the solve goes to the KSP's own tolerances, with a new set-up if the
-//    reference block differs from the current one in more than maxChanged DOFs;
-//  - a re-used set-up whose last solve needed more than twice the iterations per digit of the solve right
-//    after its set-up is replaced in any case.
+//    relative tolerance inexactRtol; from a good start (nested iteration: the guess carries the coarser
+//    level's active set) only the first step counts as moving, since later changes are near the free
+//    boundary only (3D paper-5.1 CR N = 48: finest level 3 Newton steps / 37 CG iterations -> 2 / 20,
+//    the same energy to 13 digits);
+//  - the active set has settled: the solve goes to the KSP's own tolerances;
+//  - either way, a new set-up when the reference block differs from the current one in more than
+//    maxChanged DOFs (a loose step after a new set-up takes one or two CG iterations; one re-using a
+//    set-up for a set that moved by hundreds of DOFs took up to 32), and when a re-used set-up's last
+//    solve needed more than twice the iterations per digit of the solve right after its set-up.
 // The discrete solution does not depend on any of this: the SNES stops at the same residual.
 //
 // The preconditioner inside is by default (-vi_pc_type mg) the geometric multigrid over the refinement

@@ -10,6 +10,7 @@
 
 #include "signorini/amgreuse.h"
 #include "signorini/assembly.h"
+#include "signorini/release.h"
 
 namespace signorini {
 
@@ -66,6 +67,7 @@ struct SolveOptions {
   // Each once the algebraic error |||u - u_h||| is estimated below (contact.cpp, EnergyStop):
   PetscReal startError  = 0; // this fraction of the error of the start (estimated by the first Newton step)
   PetscReal energyError = 0; // this bound
+  ReleaseOptions  release; // only for a solve without initialGuess
 };
 PetscErrorCode SolveOptionsFromCommandLine(MPI_Comm comm, SolveOptions &o);
 
