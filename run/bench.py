@@ -101,18 +101,15 @@ def median_row(runs):
 def run_once(dim, element, N, ranks, out_dir, extra, preset, suffix):
     scene = "paper-5.1" if dim == 2 else "paper-5.1-3d"
     tag = "%dd-%s-N%d-np%d%s%s" % (dim, element, N, ranks, "-" + os.path.basename(preset) if preset else "", suffix)
-    summary, log = os.path.join(out_dir, tag + ".json"), os.path.join(out_dir, tag + ".log")
     args = launch.scene(scene) + ["-space", element] + mesh_args(dim, N)
     if preset:
         args += ["-options_file", preset]
     # -malloc_dump switches on PETSc's tracing allocator (cheap without -malloc_debug), so the summary holds
     # PETSc's own malloc peak next to the peak RSS; it also reports any PETSc object the run leaks.
-    args += ["-compare_linear", "-malloc_dump", "-log_view", ":" + log] + list(extra)
-    r = launch.run(args, ranks, summary=summary)
-    if r.returncode != 0 or r.summary is None:
-        sys.stderr.write(r.stdout + r.stderr)
-        return {"scene": scene, "dim": dim, "element": element, "N": N, "ranks": ranks, "preset": preset, "status": "failed (exit %d)" % r.returncode}
-    return row_from_summary(r.summary, dim, element, N, ranks, preset)
+    s = launch.run_kept(args + ["-compare_linear", "-malloc_dump"] + list(extra), ranks, out_dir, tag)
+    if s is None:
+        return {"scene": scene, "dim": dim, "element": element, "N": N, "ranks": ranks, "preset": preset, "status": "failed"}
+    return row_from_summary(s, dim, element, N, ranks, preset)
 
 
 def row_from_summary(s, dim, element, N, ranks, preset):
@@ -195,17 +192,14 @@ def error_cost(ranks, out_dir, extra, quick=False):
     failed = 0
     for scene, element, refine in ERROR_CASES:
         mesh = ["-refine", str(refine - 2 if quick else refine)]
-        tag = "error-%s-%s-np%d" % (scene, element, ranks)
-        r = launch.run(launch.scene(scene) + ["-space", element] + mesh + ["-log_view", ":" + os.path.join(out_dir, tag + ".log")] + list(extra),
-                       ranks, summary=os.path.join(out_dir, tag + ".json"))
-        if r.returncode != 0 or r.summary is None:
-            sys.stderr.write(r.stdout + r.stderr)
-            print("  %-16s %-3s failed (exit %d)" % (scene, element, r.returncode))
+        s = launch.run_kept(launch.scene(scene) + ["-space", element] + mesh + list(extra), ranks, out_dir, "error-%s-%s-np%d" % (scene, element, ranks))
+        if s is None:
+            print("  %-16s %-3s failed" % (scene, element))
             failed += 1
             continue
-        t = r.summary["time"]
+        t = s["time"]
         ratio = t["error"] / t["solve"]
-        print("  %-16s %-3s %s %9d DOFs: error %.3f s, solve %.3f s, error/solve %.2f %s 1" % (scene, element, " ".join(mesh), r.summary["dofs"], t["error"], t["solve"], ratio, "<=" if ratio <= 1 else ">"))
+        print("  %-16s %-3s %s %9d DOFs: error %.3f s, solve %.3f s, error/solve %.2f %s 1" % (scene, element, " ".join(mesh), s["dofs"], t["error"], t["solve"], ratio, "<=" if ratio <= 1 else ">"))
     return 1 if failed else 0
 
 

@@ -17,7 +17,6 @@ import argparse
 import csv
 import os
 import statistics
-import sys
 
 import launch
 
@@ -30,14 +29,8 @@ def scene(dim):
 
 
 def run(dim, element, N, ranks, out, tag, extra):
-    """One run of the command a user types, with its summary and -log_view kept under `tag`; None if it failed."""
-    summary, log = os.path.join(out, tag + ".json"), os.path.join(out, tag + ".log")
-    args = launch.scene(scene(dim)) + ["-box_faces", str(N), "-space", element, "-log_view", ":" + log] + list(extra)
-    r = launch.run(args, ranks, summary=summary)
-    if r.returncode != 0 or r.summary is None:
-        sys.stderr.write("%s failed (exit %d): %s\n" % (tag, r.returncode, r.error_line()))
-        return None
-    return r.summary
+    """One run of the command a user types, its summary and -log_view kept under `tag`; None if it failed."""
+    return launch.run_kept(launch.scene(scene(dim)) + ["-box_faces", str(N), "-space", element] + list(extra), ranks, out, tag)
 
 
 def estimate_case(dim, element, N, ranks, repeat, out, extra):

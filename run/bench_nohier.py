@@ -25,13 +25,7 @@ TARGET = 4.0
 
 
 def run(element, N, msh, ranks, out, tag, extra):
-    summary, log = os.path.join(out, tag + ".json"), os.path.join(out, tag + ".log")
-    args = launch.scene("paper-5.1") + ["-mesh_file", msh, "-space", element, "-compare_linear", "-log_view", ":" + log] + list(extra)
-    r = launch.run(args, ranks, summary=summary)
-    if r.returncode != 0 or r.summary is None:
-        sys.stderr.write("%s failed (exit %d): %s\n" % (tag, r.returncode, r.error_line()))
-        return None
-    return r.summary
+    return launch.run_kept(launch.scene("paper-5.1") + ["-mesh_file", msh, "-space", element, "-compare_linear"] + list(extra), ranks, out, tag)
 
 
 def case(element, N, msh, ranks, repeat, out, extra):

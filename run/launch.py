@@ -7,6 +7,7 @@ import json
 import os
 import shlex
 import subprocess
+import sys
 import tempfile
 import time
 
@@ -64,3 +65,14 @@ def run(args, ranks=1, summary=False, exe=None, mpiexec=None, env=None, **kwargs
             with open(path) as f:
                 data = json.load(f)
     return Result(cmd, p, seconds, data)
+
+
+def run_kept(args, ranks, out_dir, tag):
+    """A benchmark's run: signorini with `args`, its JSON summary and -log_view kept in out_dir under `tag`.
+    Returns the summary, or None after one line on stderr naming the run and its error."""
+    summary, log = os.path.join(out_dir, tag + ".json"), os.path.join(out_dir, tag + ".log")
+    r = run(list(args) + ["-log_view", ":" + log], ranks, summary=summary)
+    if r.returncode != 0 or r.summary is None:
+        sys.stderr.write("%s failed (exit %d): %s\n" % (tag, r.returncode, r.error_line()))
+        return None
+    return r.summary
