@@ -261,7 +261,7 @@ PetscErrorCode AdaptiveRefinement::MultigridCarry(const Space &space)
   Mat          P;
   PetscFunctionBeginUser;
   if (space.element == Element::CR) {
-    PetscCall(SpaceCreate(mesh_, Element::P1, problem_, p1_));
+    PetscCall(SpaceCreateP1Of(mesh_, space, problem_, p1_));
     PetscCall(SpaceReleaseMesh(p1_));
     p1 = &p1_;
     if (!hierarchy_.P.empty()) { // the transfer from P1 to CR of the step before
