@@ -152,20 +152,22 @@ PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const 
   PetscCall(ISLocalToGlobalMappingGetIndices(coarse.ltog, &gc));
   const PetscInt dim = coarse.dim, nb = coarse.Nb();
   PetscReal      lambda[4], mu[4], x[3];
+  Space::Coords  XH, Xh;
+  CellGeometry   g;
+  PetscInt       last = -1; // the parent whose geometry g is: the children of a cell are consecutive
   for (PetscInt c = 0; c < fine.NumCells(); ++c) {
     const PetscInt pc = parent[c];
-    Space::Coords  XH, Xh;
-    CellGeometry   g;
-    bool           haveGeometry = false; // computed for the first DOF of the cell that needs it
+    bool           haveCell = false; // Xh, for the first DOF of the cell that needs it
     for (PetscInt i = 0; i < nb; ++i) {
       const PetscInt dof = fine.Dofs(c)[i], row = once ? rows.Local(gf[dof]) : -1;
       if (fine.kindLocal[dof] == kDirichlet) continue;
       if (once && (row < 0 || rows.IsSet(row))) continue;
-      if (!haveGeometry) {
-        XH = coarse.X(pc), Xh = fine.X(c);
+      if (pc != last) {
+        XH = coarse.X(pc);
         ComputeCellGeometry(dim, XH, g);
-        haveGeometry = true;
+        last = pc;
       }
+      if (!haveCell) Xh = fine.X(c), haveCell = true;
       DofLambda(fine.element, dim, i, mu);
       SimplexPoint(dim, Xh, mu, x);
       Barycentric(dim, g, XH, x, lambda);

@@ -8,15 +8,19 @@
 //   - the truncated transfer of an inactive set I (contact DOFs with x < 0.5 active) is P restricted to
 //     the rows of I and the kept coarse columns: embedded back into the full spaces it vanishes on the
 //     active DOFs (where P itself does not) and equals P on I; every coarse column it drops is zero on I;
+//   - P1: the transfer recorded on the fine cells and assembled (adapt.h) has P's entries bit for bit;
 //   - CR: the transfer from P1 on the same mesh (the multigrid's level below a CR level) gives each face
-//     the mean of the P1 function's values at the face's vertices, computed here from the cell tables;
+//     the mean of the P1 function's values at the face's vertices, computed here from the cell tables, and
+//     has the entries of its construction by MatSetValues bit for bit; the P1 space made from the CR
+//     space's tables (SpaceCreateP1Of) is SpaceCreate's (also on the adaptive meshes below);
 //   - the Galerkin coarse operators of the multigrid preconditioner (PCMG's MatPtAP, on each coarser
 //     level) equal R A P computed directly, column by column, with matrix-vector products only, from
 //     the inactive-set block and the truncated transfers;
 //   - over three adaptive steps (bisection of the cells near one corner, the new mesh redistributed on
 //     more than one rank), the P1 transfers recorded on the new cells and assembled on the new space
 //     (adapt.h): P uH equals the transfer of transfer.h (EvaluateOnCells, moved with the cells,
-//     ApplyCellValues) off Gamma_D, P reproduces a linear function that vanishes on Gamma_D exactly, and
+//     ApplyCellValues) off Gamma_D, P reproduces a linear function that vanishes on Gamma_D exactly (on
+//     one rank, without the redistribution, ProlongationMatrix gives the same entries bit for bit), and
 //     the Galerkin coarse operators of the multigrid over those levels (for CR with P1 to CR on top)
 //     equal R A P.
 #include "signorini/assembly.h"
@@ -613,6 +617,14 @@ static PetscErrorCode TestAdaptive(unit::Checker &ck, const HierarchyCase &hc)
     mesh = refined;
     PetscCall(SpaceCreate(mesh, Element::P1, problem, fine));
     PetscCall(AssembleP1Transfer(rec, fine, &P));
+    if (size == 1) { // the cells stayed with their parents: the adaptive multigrid builds P from the two spaces
+      Mat       Pd;
+      PetscBool same;
+      PetscCall(ProlongationMatrix(coarse, fine, parent, &Pd));
+      PetscCall(SameEntries(P, Pd, &same));
+      ck.Check(same, tag + Format(" step %d: ProlongationMatrix gives the recorded transfer's entries bit for bit", (int)step), "differs");
+      PetscCall(MatDestroy(&Pd));
+    }
     PetscCall(DMCreateGlobalVector(fine.dm, &uh));
     PetscCall(VecDuplicate(uh, &ref));
     // a generic function: as the solution's transfer carries it
