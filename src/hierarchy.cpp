@@ -59,6 +59,7 @@ PetscErrorCode Compact(Mat *P)
   *P = copy;
   PetscFunctionReturn(0);
 }
+
 // The global index of this rank's first owned entry of a layout with `owned` entries a rank.
 PetscErrorCode FirstOwned(MPI_Comm comm, PetscInt owned, PetscInt *first)
 {
@@ -70,6 +71,7 @@ PetscErrorCode FirstOwned(MPI_Comm comm, PetscInt owned, PetscInt *first)
   if (rank == 0) *first = 0; // MPI_Exscan leaves rank 0's result undefined
   PetscFunctionReturn(0);
 }
+
 // The rows of a transfer, each owned row set at most once (rows never set stay empty), gathered before
 // the matrix exists so that it is allocated to exactly its entries (no spare room to compact away with a
 // copy) and filled a whole row at a time.
@@ -144,8 +146,12 @@ private:
   {
     const PetscInt m = (PetscInt)count_.size();
     PetscContainer container;
-    auto          *arrays = new Arrays;
+    Arrays        *arrays;
     PetscFunctionBeginUser;
+    PetscCall(PetscContainerCreate(PETSC_COMM_SELF, &container));
+    arrays = new Arrays;
+    PetscCall(PetscContainerSetPointer(container, arrays));
+    PetscCall(PetscContainerSetUserDestroy(container, DestroyArrays));
     arrays->i.assign(m + 1, 0);
     for (PetscInt r = 0; r < m; ++r) arrays->i[r + 1] = arrays->i[r] + PetscMax(count_[r], 0);
     const PetscInt nnz = arrays->i[m];
@@ -156,10 +162,7 @@ private:
       std::copy(&vals_[r * max_], &vals_[r * max_] + PetscMax(count_[r], 0), &arrays->a[arrays->i[r]]);
     }
     cols_ = std::vector<PetscInt>(), vals_ = std::vector<PetscScalar>();
-    PetscCall(PetscContainerCreate(PETSC_COMM_SELF, &container));
-    PetscCall(PetscContainerSetPointer(container, arrays));
-    PetscCall(PetscContainerSetUserDestroy(container, DestroyArrays));
-    PetscCall(MatCreateSeqAIJWithArrays(comm, (PetscInt)count_.size(), n, arrays->i.data(), arrays->j.data(), arrays->a.data(), P));
+    PetscCall(MatCreateSeqAIJWithArrays(comm, m, n, arrays->i.data(), arrays->j.data(), arrays->a.data(), P));
     PetscCall(PetscObjectCompose((PetscObject)*P, "signorini_transfer_arrays", (PetscObject)container));
     PetscCall(PetscContainerDestroy(&container));
     PetscFunctionReturn(0);
