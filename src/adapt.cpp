@@ -113,18 +113,21 @@ PetscErrorCode AdaptiveRefinement::Refine()
   PetscCall(EvaluateOnCells(prev_.space, prev_.u, lowerH, fine, parent, carried_));
   PetscCall(VecDestroy(&lowerH));
   PetscCall(SecondsSince(comm, t0, &row.transferSeconds));
-  if (multigrid_) {
-    PetscCall(MultigridTime([&]() -> PetscErrorCode {
-      PetscCall(RecordP1Transfer(prev_.space.element == Element::P1 ? prev_.space : p1_, fine, parent, record_));
-      return SpaceDestroy(p1_);
-    }));
-  }
   PetscCall(PetscTime(&t0));
   if (adapt_.referenceSteps > 0) { // kept for the errors against the reference
     kept_.push_back(std::move(prev_));
     parents_.resize(step_);
-    parents_.push_back(std::move(parent));
-  } else PetscCall(prev_.Destroy());
+    parents_.push_back(parent);
+  } else {
+    if (multigrid_ && prev_.space.element == Element::P1) { // the multigrid's coarse P1 space, until Carry
+      p1_         = prev_.space;
+      prev_.space = Space(); // a copied Space still holds the handles
+    }
+    PetscCall(prev_.Destroy());
+  }
+  // the coarse P1 space of the multigrid's next transfer: p1_ (CR; P1 without kept steps) or the kept step's
+  coarseP1_ = multigrid_ ? (p1_.dm ? &p1_ : &kept_.back().space) : nullptr;
+  if (multigrid_) mgParent_ = std::move(parent);
   prev_ = MeshSolution();
   PetscCall(DMDestroy(&mesh_));
   mesh_ = fine;
@@ -147,7 +150,15 @@ PetscErrorCode AdaptiveRefinement::Refine()
     PetscCall(RedistributeMesh(mesh_, &dist, &migration));
     if (dist) {
       PetscCall(MigrateCellValues(mesh_, migration, dist, carried_));
-      if (multigrid_) PetscCall(MigrateCellValues(mesh_, migration, dist, record_.cells));
+      if (multigrid_) { // the cells leave their parents' ranks: the transfer is recorded on them and travels along
+        PetscCall(MultigridTime([&]() -> PetscErrorCode {
+          PetscCall(RecordP1Transfer(*coarseP1_, mesh_, mgParent_, record_));
+          mgParent_.clear();
+          coarseP1_ = nullptr;
+          return SpaceDestroy(p1_);
+        }));
+        PetscCall(MigrateCellValues(mesh_, migration, dist, record_.cells));
+      }
       PetscCall(PetscSFDestroy(&migration));
       PetscCall(DMDestroy(&mesh_));
       mesh_ = dist;
@@ -241,6 +252,9 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
   PetscCall(hierarchy_.Destroy());
   PetscCall(SpaceDestroy(p1_));
   levelDofs_.clear();
+  coarseP1_ = nullptr;
+  mgParent_.clear();
+  record_   = TransferRecord();
   n    = finest.space.NumCells();
   comm = PetscObjectComm((PetscObject)finest.u); // not m's, which may be gone
   PetscMPIInt size;
@@ -257,25 +271,34 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
 // stay as sparse as P1 stiffness matrices).
 PetscErrorCode AdaptiveRefinement::MultigridCarry(const Space &space)
 {
-  const Space *p1 = &space;
+  const bool   cr = space.element == Element::CR;
+  Space        fineP1;
+  const Space *p1 = cr ? &fineP1 : &space;
   Mat          P;
   PetscFunctionBeginUser;
-  if (space.element == Element::CR) {
-    PetscCall(SpaceCreate(mesh_, Element::P1, problem_, p1_));
-    PetscCall(SpaceReleaseMesh(p1_));
-    p1 = &p1_;
+  if (cr) {
+    PetscCall(SpaceCreateP1Of(mesh_, space, problem_, fineP1));
+    PetscCall(SpaceReleaseMesh(fineP1));
     if (!hierarchy_.P.empty()) { // the transfer from P1 to CR of the step before
       PetscCall(MatDestroy(&hierarchy_.P.back()));
       hierarchy_.P.pop_back();
     }
   }
   if (step_ > 0) {
-    PetscCall(AssembleP1Transfer(record_, *p1, &P));
-    record_ = TransferRecord();
+    // From the coarse P1 space to the fine one directly, as nested iteration builds it, where the fine
+    // cells stayed on their parents' ranks; the same matrix as the record's (unit_hierarchy), built per
+    // fine vertex instead of per fine cell and vertex, without the mesh.
+    if (coarseP1_) PetscCall(ProlongationMatrix(*coarseP1_, *p1, mgParent_, &P));
+    else PetscCall(AssembleP1Transfer(record_, *p1, &P));
+    record_   = TransferRecord();
+    mgParent_ = std::vector<PetscInt>();
+    coarseP1_ = nullptr;
     PetscCall(MultigridLevel(P, p1->numGlobal));
   } else levelDofs_.assign(1, p1->numGlobal);
-  if (space.element == Element::CR) {
-    PetscCall(P1ToCRMatrix(*p1, space, &P));
+  PetscCall(SpaceDestroy(p1_)); // the coarse one, if it was not a kept step's
+  if (cr) {
+    p1_ = fineP1; // for the next step's transfer
+    PetscCall(P1ToCRMatrix(p1_, space, &P));
     hierarchy_.P.push_back(P);
   }
   PetscFunctionReturn(0);

@@ -470,12 +470,11 @@ static PetscErrorCode SpaceEvents(PetscLogEvent ev[4])
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Space &s, bool interiorFaces, bool vertexExchange)
+// The mesh clone, its strata and the section of the DOFs with their layout: the start of both ways to create a space.
+static PetscErrorCode SpaceCreateLayout(DM mesh, Element element, Space &s, PetscInt &vEnd, PetscInt &fStart, PetscInt &fEnd)
 {
-  PetscInt      vStart, vEnd, fStart, fEnd;
-  PetscLogEvent ev[4];
+  PetscInt vStart;
   PetscFunctionBeginUser;
-  PetscCall(SpaceEvents(ev));
   PetscCall(DMClone(mesh, &s.mesh));
   PetscCall(PetscObjectSetName((PetscObject)s.mesh, "mesh"));
   s.element = element;
@@ -485,9 +484,19 @@ PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Spa
   PetscCall(DMPlexGetHeightStratum(s.mesh, 1, &fStart, &fEnd));
   PetscCall(DMPlexGetHeightStratum(s.mesh, 0, &s.cStart, &s.cEnd));
   s.vStart = vStart;
-  PetscCall(PetscLogEventBegin(ev[0], 0, 0, 0, 0));
   PetscCall(CreateSection(s, vStart, vEnd, fStart, fEnd));
   PetscCall(LayoutCreateFromDM(s.mesh, &s.dm));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Space &s, bool interiorFaces, bool vertexExchange)
+{
+  PetscInt      vEnd, fStart, fEnd;
+  PetscLogEvent ev[4];
+  PetscFunctionBeginUser;
+  PetscCall(SpaceEvents(ev));
+  PetscCall(PetscLogEventBegin(ev[0], 0, 0, 0, 0));
+  PetscCall(SpaceCreateLayout(mesh, element, s, vEnd, fStart, fEnd));
   PetscCall(PetscLogEventEnd(ev[0], 0, 0, 0, 0));
   PetscCall(PetscLogEventBegin(ev[1], 0, 0, 0, 0));
   PetscCall(BuildCellTables(s, vEnd));
@@ -500,6 +509,34 @@ PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Spa
   PetscCall(PetscLogEventBegin(ev[3], 0, 0, 0, 0));
   PetscCall(ClassifyDofs(s, problem));
   if (problem.HasContact() && !problem.dirichlet.empty()) PetscCall(CheckObstacleMeetsDirichlet(s, problem));
+  PetscCall(PetscLogEventEnd(ev[3], 0, 0, 0, 0));
+  PetscCall(DMGetLocalToGlobalMapping(s.mesh, &s.ltog));
+  PetscCall(PetscObjectReference((PetscObject)s.ltog));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SpaceCreateP1Of(DM mesh, const Space &cr, const Problem &problem, Space &s)
+{
+  PetscInt      vEnd, fStart, fEnd;
+  PetscLogEvent ev[4];
+  PetscFunctionBeginUser;
+  PetscCall(SpaceEvents(ev));
+  PetscCall(PetscLogEventBegin(ev[0], 0, 0, 0, 0));
+  PetscCall(SpaceCreateLayout(mesh, Element::P1, s, vEnd, fStart, fEnd));
+  PetscCall(PetscLogEventEnd(ev[0], 0, 0, 0, 0));
+  PetscCheck(cr.dim == s.dim && cr.cStart == s.cStart && cr.cEnd == s.cEnd && cr.vStart == s.vStart && (PetscInt)cr.vertX.size() == (vEnd - s.vStart) * s.dim, PETSC_COMM_SELF, PETSC_ERR_ARG_INCOMP, "the space given is not one of this mesh");
+  // The tables depend on the mesh only, the checks on them were made for cr.
+  PetscCall(PetscLogEventBegin(ev[1], 0, 0, 0, 0));
+  s.cellVert = cr.cellVert;
+  s.vertX    = cr.vertX;
+  s.cellSet  = cr.cellSet;
+  PetscCall(PetscLogEventEnd(ev[1], 0, 0, 0, 0));
+  PetscCall(PetscLogEventBegin(ev[2], 0, 0, 0, 0));
+  s.boundary = cr.boundary;
+  for (BoundaryFace &bf : s.boundary) bf.dof = -1;
+  PetscCall(PetscLogEventEnd(ev[2], 0, 0, 0, 0));
+  PetscCall(PetscLogEventBegin(ev[3], 0, 0, 0, 0));
+  PetscCall(ClassifyDofs(s, problem));
   PetscCall(PetscLogEventEnd(ev[3], 0, 0, 0, 0));
   PetscCall(DMGetLocalToGlobalMapping(s.mesh, &s.ltog));
   PetscCall(PetscObjectReference((PetscObject)s.ltog));

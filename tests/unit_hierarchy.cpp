@@ -8,15 +8,19 @@
 //   - the truncated transfer of an inactive set I (contact DOFs with x < 0.5 active) is P restricted to
 //     the rows of I and the kept coarse columns: embedded back into the full spaces it vanishes on the
 //     active DOFs (where P itself does not) and equals P on I; every coarse column it drops is zero on I;
+//   - P1: the transfer recorded on the fine cells and assembled (adapt.h) has P's entries bit for bit;
 //   - CR: the transfer from P1 on the same mesh (the multigrid's level below a CR level) gives each face
-//     the mean of the P1 function's values at the face's vertices, computed here from the cell tables;
+//     the mean of the P1 function's values at the face's vertices, computed here from the cell tables, and
+//     has the entries of its construction by MatSetValues bit for bit; the P1 space made from the CR
+//     space's tables (SpaceCreateP1Of) is SpaceCreate's (also on the adaptive meshes below);
 //   - the Galerkin coarse operators of the multigrid preconditioner (PCMG's MatPtAP, on each coarser
 //     level) equal R A P computed directly, column by column, with matrix-vector products only, from
 //     the inactive-set block and the truncated transfers;
 //   - over three adaptive steps (bisection of the cells near one corner, the new mesh redistributed on
 //     more than one rank), the P1 transfers recorded on the new cells and assembled on the new space
 //     (adapt.h): P uH equals the transfer of transfer.h (EvaluateOnCells, moved with the cells,
-//     ApplyCellValues) off Gamma_D, P reproduces a linear function that vanishes on Gamma_D exactly, and
+//     ApplyCellValues) off Gamma_D, P reproduces a linear function that vanishes on Gamma_D exactly (on
+//     one rank, without the redistribution, ProlongationMatrix gives the same entries bit for bit), and
 //     the Galerkin coarse operators of the multigrid over those levels (for CR with P1 to CR on top)
 //     equal R A P.
 #include "signorini/assembly.h"
@@ -27,6 +31,7 @@
 #include "signorini/transfer.h"
 #include "unit_check.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -152,6 +157,99 @@ static PetscErrorCode GalerkinError(Mat A, Mat P, Mat Ac, PetscReal *err)
 
 static PetscErrorCode CheckGalerkin(unit::Checker &ck, const std::string &tag, const Space &fine, const Problem &problem, const Hierarchy &mg, IS inactive, PetscInt expected);
 
+// Whether P is allocated to exactly its entries, and the entries allocated and used. PETSc counts the
+// allocation it made; a transfer made on one rank lies on arrays handed to PETSc (hierarchy.cpp), sized
+// to its entries there, of which PETSc counts none: those are told apart by the container that owns them.
+static PetscErrorCode AllocatedToEntries(Mat P, bool *exact, PetscReal *allocated, PetscReal *used)
+{
+  MatInfo     info;
+  PetscObject arrays;
+  PetscFunctionBeginUser;
+  PetscCall(MatGetInfo(P, MAT_GLOBAL_SUM, &info));
+  PetscCall(PetscObjectQuery((PetscObject)P, "signorini_transfer_arrays", &arrays));
+  *allocated = info.nz_allocated, *used = info.nz_used;
+  *exact     = arrays ? info.nz_allocated == 0 : info.nz_allocated == info.nz_used;
+  PetscFunctionReturn(0);
+}
+
+// Whether A and B hold the same entries, bit for bit, in the same places (row by row, owned rows). Collective.
+static PetscErrorCode SameEntries(Mat A, Mat B, PetscBool *same)
+{
+  PetscInt rStart, rEnd, M[2], N[2];
+  PetscFunctionBeginUser;
+  PetscCall(MatGetSize(A, &M[0], &N[0]));
+  PetscCall(MatGetSize(B, &M[1], &N[1]));
+  *same = (PetscBool)(M[0] == M[1] && N[0] == N[1]);
+  PetscCall(MatGetOwnershipRange(A, &rStart, &rEnd));
+  for (PetscInt r = rStart; r < rEnd && *same; ++r) {
+    const PetscInt    *ca, *cb;
+    const PetscScalar *va, *vb;
+    PetscInt           na, nb;
+    PetscCall(MatGetRow(A, r, &na, &ca, &va));
+    PetscCall(MatGetRow(B, r, &nb, &cb, &vb));
+    *same = (PetscBool)(na == nb);
+    for (PetscInt k = 0; k < na && *same; ++k) *same = (PetscBool)(ca[k] == cb[k] && va[k] == vb[k]);
+    PetscCall(MatRestoreRow(B, r, &nb, &cb, &vb));
+    PetscCall(MatRestoreRow(A, r, &na, &ca, &va));
+  }
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, same, 1, MPIU_BOOL, MPI_LAND, PetscObjectComm((PetscObject)A)));
+  PetscFunctionReturn(0);
+}
+
+// The transfer from P1 to CR on one mesh as it was first built, entry by entry with MatSetValues (a face's
+// row: 1/d at each of its vertices but the Dirichlet ones; Dirichlet rows empty): the reference of
+// P1ToCRMatrix's construction.
+static PetscErrorCode P1ToCRBySetValues(const Space &p1, const Space &cr, Mat *Q)
+{
+  const PetscInt *gf, *gc;
+  PetscFunctionBeginUser;
+  const PetscInt dim = cr.dim, nb = cr.Nb();
+  PetscCall(MatCreateAIJ(PetscObjectComm((PetscObject)cr.dm), cr.numOwned, p1.numOwned, cr.numGlobal, p1.numGlobal, dim, NULL, dim, NULL, Q));
+  PetscCall(ISLocalToGlobalMappingGetIndices(cr.ltog, &gf));
+  PetscCall(ISLocalToGlobalMappingGetIndices(p1.ltog, &gc));
+  for (PetscInt c = 0; c < cr.NumCells(); ++c)
+    for (PetscInt i = 0; i < nb; ++i) {
+      const PetscInt dof = cr.Dofs(c)[i];
+      if (cr.kindLocal[dof] == kDirichlet) continue;
+      for (PetscInt j = 0; j < nb; ++j) {
+        const PetscInt    v = cr.cellVert[c * nb + j];
+        const PetscScalar w = 1.0 / dim;
+        if (j != i && p1.kindLocal[v] != kDirichlet) PetscCall(MatSetValues(*Q, 1, &gf[dof], 1, &gc[v], &w, INSERT_VALUES));
+      }
+    }
+  PetscCall(ISLocalToGlobalMappingRestoreIndices(p1.ltog, &gc));
+  PetscCall(ISLocalToGlobalMappingRestoreIndices(cr.ltog, &gf));
+  PetscCall(MatAssemblyBegin(*Q, MAT_FINAL_ASSEMBLY));
+  PetscCall(MatAssemblyEnd(*Q, MAT_FINAL_ASSEMBLY));
+  PetscFunctionReturn(0);
+}
+
+// What differs between two spaces that should be the same P1 space (SpaceCreate's and SpaceCreateP1Of's):
+// sizes, numbering, DOF kinds, tables; empty if nothing (on any rank). Collective.
+static PetscErrorCode SpaceDifference(const Space &a, const Space &b, std::string &what)
+{
+  const PetscInt *ga, *gb;
+  PetscInt        na, nb;
+  PetscFunctionBeginUser;
+  what.clear();
+  if (a.element != b.element || a.numLocal != b.numLocal || a.numOwned != b.numOwned || a.numGlobal != b.numGlobal || a.numContactGlobal != b.numContactGlobal || a.numDirichletGlobal != b.numDirichletGlobal) what = "sizes";
+  else if (a.kindLocal != b.kindLocal || a.dirichletOwned != b.dirichletOwned || a.contactOwned != b.contactOwned) what = "DOF kinds";
+  else if (a.cellVert != b.cellVert || a.vertX != b.vertX || a.cellSet != b.cellSet || a.boundary.size() != b.boundary.size()) what = "tables";
+  else {
+    PetscCall(ISLocalToGlobalMappingGetSize(a.ltog, &na));
+    PetscCall(ISLocalToGlobalMappingGetSize(b.ltog, &nb));
+    PetscCall(ISLocalToGlobalMappingGetIndices(a.ltog, &ga));
+    PetscCall(ISLocalToGlobalMappingGetIndices(b.ltog, &gb));
+    if (na != nb || !std::equal(ga, ga + na, gb)) what = "global numbering";
+    PetscCall(ISLocalToGlobalMappingRestoreIndices(b.ltog, &gb));
+    PetscCall(ISLocalToGlobalMappingRestoreIndices(a.ltog, &ga));
+  }
+  PetscInt bad = !what.empty(), any;
+  PetscCallMPI(MPI_Allreduce(&bad, &any, 1, MPIU_INT, MPI_MAX, PetscObjectComm((PetscObject)a.dm)));
+  if (any && what.empty()) what = "on another rank";
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
 {
   MPI_Comm           comm = PETSC_COMM_WORLD;
@@ -195,9 +293,22 @@ static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
     PetscCall(VecNorm(ref, NORM_INFINITY, &err));
     ck.Check(size > 0.5 && err < 1e-13 * size, tag + Format(" level %d: P uH equals the transfer of transfer.h off Gamma_D", (int)l), "max error %.3e of %.3e", (double)err, (double)size);
     for (Vec *v : {&uH, &uh, &ref}) PetscCall(VecDestroy(v));
-    MatInfo info;
-    PetscCall(MatGetInfo(h.P[l - 1], MAT_GLOBAL_SUM, &info));
-    ck.Check(info.nz_allocated == info.nz_used, tag + Format(" level %d: P is allocated to its entries", (int)l), "%.0f allocated for %.0f entries", info.nz_allocated, info.nz_used);
+    bool      exact;
+    PetscReal allocated, used;
+    PetscCall(AllocatedToEntries(h.P[l - 1], &exact, &allocated, &used));
+    ck.Check(exact, tag + Format(" level %d: P is allocated to its entries", (int)l), "%.0f allocated for %.0f entries", (double)allocated, (double)used);
+    if (hc.element == Element::P1) { // the adaptive multigrid's construction of the same transfer (adapt.h)
+      TransferRecord rec;
+      Mat            R;
+      PetscBool      same;
+      PetscCall(RecordP1Transfer(spaces[l - 1], levels.dm[l], levels.parent[l], rec));
+      PetscCall(AssembleP1Transfer(rec, spaces[l], &R));
+      PetscCall(SameEntries(h.P[l - 1], R, &same));
+      ck.Check(same, tag + Format(" level %d: the transfer recorded on the fine cells and assembled has P's entries bit for bit", (int)l), "differs");
+      PetscCall(AllocatedToEntries(R, &exact, &allocated, &used));
+      ck.Check(exact, tag + Format(" level %d: the recorded transfer is allocated to its entries", (int)l), "%.0f allocated for %.0f entries", (double)allocated, (double)used);
+      PetscCall(MatDestroy(&R));
+    }
   }
 
   // The multigrid's hierarchy, as nested iteration builds it: P1 the transfers above; CR P1 on every level
@@ -257,6 +368,20 @@ static PetscErrorCode TestCase(unit::Checker &ck, const HierarchyCase &hc)
     PetscCall(VecAXPY(ref, -1.0, w));
     PetscCall(VecNorm(ref, NORM_INFINITY, &err));
     ck.Check(size > 0.5 && err < 1e-13 * size, tag + " from P1 on the same mesh: each face gets the mean of its vertices", "max error %.3e of %.3e", (double)err, (double)size);
+    // built row by row into an exact allocation: the entries of the construction by MatSetValues
+    Mat       Qref;
+    PetscBool same;
+    PetscCall(P1ToCRBySetValues(p1, cr, &Qref));
+    PetscCall(SameEntries(Q, Qref, &same));
+    ck.Check(same, tag + " from P1 on the same mesh: the entries of the construction by MatSetValues, bit for bit", "differs");
+    PetscCall(MatDestroy(&Qref));
+    // the P1 space made from the CR space's tables is SpaceCreate's
+    Space       p1Of;
+    std::string what;
+    PetscCall(SpaceCreateP1Of(levels.dm[L - 1], cr, problem, p1Of));
+    PetscCall(SpaceDifference(p1, p1Of, what));
+    ck.Check(what.empty(), tag + " the P1 space made from the CR space is SpaceCreate's", "differs: %s", what.c_str());
+    PetscCall(SpaceDestroy(p1Of));
     for (Vec *x : {&v, &w, &ref}) PetscCall(VecDestroy(x));
     mg.P.push_back(Q);
   }
@@ -508,6 +633,14 @@ static PetscErrorCode TestAdaptive(unit::Checker &ck, const HierarchyCase &hc)
     mesh = refined;
     PetscCall(SpaceCreate(mesh, Element::P1, problem, fine));
     PetscCall(AssembleP1Transfer(rec, fine, &P));
+    if (size == 1) { // the cells stayed with their parents: the adaptive multigrid builds P from the two spaces
+      Mat       Pd;
+      PetscBool same;
+      PetscCall(ProlongationMatrix(coarse, fine, parent, &Pd));
+      PetscCall(SameEntries(P, Pd, &same));
+      ck.Check(same, tag + Format(" step %d: ProlongationMatrix gives the recorded transfer's entries bit for bit", (int)step), "differs");
+      PetscCall(MatDestroy(&Pd));
+    }
     PetscCall(DMCreateGlobalVector(fine.dm, &uh));
     PetscCall(VecDuplicate(uh, &ref));
     // a generic function: as the solution's transfer carries it
@@ -533,9 +666,15 @@ static PetscErrorCode TestAdaptive(unit::Checker &ck, const HierarchyCase &hc)
   std::vector<char> active;
   if (cr) {
     Mat Q;
+    Space       p1Of;
+    std::string what;
     PetscCall(SpaceCreate(mesh, Element::CR, problem, top));
     PetscCall(P1ToCRMatrix(coarse, top, &Q));
     mg.P.push_back(Q);
+    PetscCall(SpaceCreateP1Of(mesh, top, problem, p1Of)); // the adaptive multigrid's P1 space, on a redistributed mesh
+    PetscCall(SpaceDifference(coarse, p1Of, what));
+    ck.Check(what.empty(), tag + " the P1 space made from the CR space is SpaceCreate's", "differs: %s", what.c_str());
+    PetscCall(SpaceDestroy(p1Of));
   }
   const Space &finest = cr ? top : coarse;
   PetscCall(TestInactiveSet(finest, &inactive, active));

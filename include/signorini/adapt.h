@@ -108,8 +108,14 @@ private:
   bool                  multigrid_ = false;
   Hierarchy             hierarchy_;
   std::vector<PetscInt> levelDofs_; // global P1 DOFs of the kept levels, coarse to fine
-  Space                 p1_;        // CR: the P1 space of mesh_, for the next step's transfer
-  TransferRecord        record_;    // the transfer from the P1 space of mesh_'s parent mesh to mesh_
+  // The P1 transfer from the step before to mesh_ is built once mesh_'s space exists: from the coarse P1
+  // space and the parent map (ProlongationMatrix), or, where mesh_ was redistributed, from its record,
+  // made on the new cells before they moved (RecordP1Transfer, AssembleP1Transfer).
+  Space                 p1_;        // CR: the P1 space of mesh_ (after Refine: of its parent mesh); P1: that
+                                    // of the parent mesh, from Refine to Carry, unless a kept step holds it
+  const Space          *coarseP1_ = nullptr; // the coarse P1 space (p1_ or a kept step's), until the transfer
+  std::vector<PetscInt> mgParent_;  // with it: the parent of every cell of mesh_
+  TransferRecord        record_;    // or the record (mesh_ redistributed)
   double                multigridSeconds_ = 0; // its set-up for the next solve, counted as that solve's time
   PetscErrorCode        MultigridCarry(const Space &space);
   PetscErrorCode        MultigridTime(const std::function<PetscErrorCode()> &f);

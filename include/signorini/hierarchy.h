@@ -41,9 +41,10 @@ PetscErrorCode P1ToCRMatrix(const Space &p1, const Space &cr, Mat *Q);
 // uniform or not, reproduces exactly), the columns the coarse space's global indices, which stay valid
 // however the fine mesh is distributed.
 struct TransferRecord {
-  // Per fine cell (c - cStart), for each of its dim + 1 vertices in the order of the cell tables the
-  // (dim + 1) coarse global columns of its parent cell (-1: a Dirichlet DOF or a zero weight), then the
-  // (dim + 1)^2 weights: a CellValues whose "DOFs per cell" are the (dim + 1)^2 pairs.
+  // Per fine cell (c - cStart) the dim + 1 coarse global columns of its parent cell (-1: a Dirichlet
+  // DOF), then for each of its dim + 1 vertices in the order of the cell tables the weights of those
+  // columns (the parent's barycentric coordinates of the vertex, 0 where below 1e-12 in magnitude): a
+  // CellValues whose "DOFs per cell" are the (dim + 1) (dim + 2) / 2 pairs of values.
   CellValues cells;
   PetscInt   coarseOwned = 0, coarseGlobal = 0; // the coarse space's layout
 };

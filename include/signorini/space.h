@@ -207,6 +207,11 @@ PetscErrorCode ElementFromCommandLine(MPI_Comm comm, Element &e);
 // and that psi <= u_D where Gamma_D and Gamma_C meet (otherwise no u in H^1 satisfies both). With
 // interiorFaces, also the face tables (interiorFaces, sharedFaces, sharedFaceSF); with vertexExchange, vertexSF.
 PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Space &space, bool interiorFaces = false, bool vertexExchange = false);
+// The P1 space of `mesh`, whose CR space (or any space of it) is `of`: as SpaceCreate(mesh, P1, problem, ...)
+// builds it (no face tables, no vertex exchange), with the cell tables and boundary faces copied from `of`
+// instead of looked up in the mesh again (the multigrid over adaptive CR levels needs one every step,
+// adapt.h), and without SpaceCreate's checks of the mesh and the data, which `of` passed.
+PetscErrorCode SpaceCreateP1Of(DM mesh, const Space &of, const Problem &problem, Space &space);
 PetscErrorCode SpaceDestroy(Space &space);
 // Drops the space's mesh clone, so that once the caller drops its own references the DMPlex is freed.
 // Everything but the HDF5 output works on the tables and the layout (assembly, solve, KKT, energy, errors,
