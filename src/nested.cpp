@@ -118,7 +118,7 @@ PetscErrorCode NestedIteration::CoarseSpaceTransfers(PetscInt l, const Space &sp
   PetscFunctionBeginUser;
   if (fine_.solve.amgReuse.innerType != PCMG || space.element != Element::CR) PetscFunctionReturn(0);
   PetscCall(PetscTime(&t0));
-  PetscCall(SpaceCreate(levels_.dm[l], Element::P1, problem_, p1));
+  PetscCall(SpaceCreateP1Of(levels_.dm[l], space, problem_, p1));
   PetscCall(SpaceReleaseMesh(p1));
   if (!hierarchy_.P.empty()) { // the transfer of the level before from its CR space to its P1 space
     PetscCall(MatDestroy(&hierarchy_.P.back()));
