@@ -1,5 +1,6 @@
 #include "signorini/contact.h"
 #include "signorini/datascale.h"
+#include "signorini/energystop.h"
 #include "signorini/options.h"
 #include "signorini/report.h"
 #include "signorini/stages.h"
@@ -201,100 +202,6 @@ static PetscErrorCode StraightStartNorm(SNES snes, const System &sys, Vec lower,
   PetscCall(SNESVIComputeInactiveSetFnorm(snes, F0, u0, fnorm));
   PetscCall(VecDestroy(&u0));
   PetscCall(VecDestroy(&F0));
-  PetscFunctionReturn(0);
-}
-
-// SolveOptions::energyError and startError: the solve stops once its algebraic error in the energy norm
-// is below a bound. For an admissible v, J(v) - J(u_h) >= |||v - u_h|||^2 / 2 (u_h the discrete
-// solution), with equality once v has u_h's active set; so where an iteration contracts this excess
-// energy by 1/2 or better per step, the energy decrease of a step, J_{k-1} - J_k, is at least the excess
-// left after it, and a decrease below bound^2 / 2 leaves an error below the bound (one step later than an
-// oracle would stop). This holds for the Newton steps (full reduced-space steps from a prolongated guess:
-// the residual falls by 3 to 60 a step) and for the CG iterations inside one (the multigrid V-cycle: 10
-// and more an iteration): a Newton step's linear solve stops at the same decrease, so that it does not
-// solve beyond the bound either. With startError the bound is that fraction of the error of the start,
-// whose excess energy the first Newton step's decrease J_0 - J_1 measures. The energy of the step's CG
-// iterate x is J(u - x) - J(u) = x.A x / 2 - F.x, one product with the block an iteration; at a Newton
-// iterate J = (u.F - b.u) / 2 from the residual F the SNES holds.
-struct EnergyStop {
-  Vec       b        = nullptr; // the right-hand side (solver's units)
-  PetscReal decrease = 0;       // the energy decrease that ends a solve, in the solver's units (0: none yet)
-  PetscReal relative = 0;       // startError: decrease = relative^2 (J_0 - J_1), set after the first step
-  PetscReal cg = 0, newton = 0; // the energy of the previous CG iterate and of the previous Newton iterate
-  bool      stopped  = false;   // the Newton iteration ended by the energy test
-  Vec       Ax       = nullptr; // work vector of the block's size
-  void     *kspDefault = nullptr;
-  PetscErrorCode Destroy()
-  {
-    PetscFunctionBeginUser;
-    PetscCall(VecDestroy(&Ax));
-    if (kspDefault) PetscCall(KSPConvergedDefaultDestroy(kspDefault));
-    kspDefault = nullptr;
-    PetscFunctionReturn(0);
-  }
-};
-
-static PetscErrorCode EnergyKSPTest(KSP ksp, PetscInt it, PetscReal rnorm, KSPConvergedReason *reason, void *ctx)
-{
-  auto       *e = static_cast<EnergyStop *>(ctx);
-  Mat         A;
-  Vec         x, b, with[2];
-  PetscScalar dots[2];
-  PetscFunctionBeginUser;
-  PetscCall(KSPConvergedDefault(ksp, it, rnorm, reason, e->kspDefault));
-  PetscCall(KSPBuildSolution(ksp, NULL, &x));
-  PetscCall(KSPGetRhs(ksp, &b));
-  PetscCall(KSPGetOperators(ksp, &A, NULL));
-  if (it == 0) { // every Newton step has its own block (layout)
-    PetscCall(VecDestroy(&e->Ax));
-    PetscCall(VecDuplicate(x, &e->Ax));
-  }
-  PetscCall(MatMult(A, x, e->Ax));
-  with[0] = e->Ax;
-  with[1] = b;
-  PetscCall(VecMDot(x, 2, with, dots));
-  const PetscReal energy = 0.5 * PetscRealPart(dots[0]) - PetscRealPart(dots[1]);
-  if (it > 0 && *reason == KSP_CONVERGED_ITERATING && e->cg - energy < e->decrease) *reason = KSP_CONVERGED_ATOL;
-  e->cg = energy;
-  PetscFunctionReturn(0);
-}
-
-static PetscErrorCode EnergySNESTest(SNES snes, PetscInt it, PetscReal xnorm, PetscReal snorm, PetscReal fnorm, SNESConvergedReason *reason, void *ctx)
-{
-  auto       *e = static_cast<EnergyStop *>(ctx);
-  Vec         u, F, with[2];
-  PetscScalar dots[2];
-  PetscFunctionBeginUser;
-  PetscCall(SNESConvergedDefault(snes, it, xnorm, snorm, fnorm, reason, NULL));
-  PetscCall(SNESGetSolution(snes, &u));
-  PetscCall(SNESGetFunction(snes, &F, NULL, NULL));
-  with[0] = F;
-  with[1] = e->b;
-  PetscCall(VecMDot(u, 2, with, dots));
-  const PetscReal energy = 0.5 * (PetscRealPart(dots[0]) - PetscRealPart(dots[1]));
-  // a step that raised the energy (the projection onto the bounds may) says nothing of the error
-  const PetscReal down = e->newton - energy;
-  if (it == 1 && e->relative > 0) e->decrease = e->relative * e->relative * PetscMax(down, 0);
-  else if (it > 0 && *reason == SNES_CONVERGED_ITERATING && down >= 0 && down < e->decrease) {
-    *reason    = SNES_CONVERGED_ITS; // PETSc 3.18 has no reason for a user's test; stoppedBy says which
-    e->stopped = true;
-  }
-  e->newton = energy;
-  PetscFunctionReturn(0);
-}
-
-static PetscErrorCode EnergyStopInstall(SNES snes, const System &sys, const SolveOptions &opts, const DataScale &scale, EnergyStop &e)
-{
-  KSP ksp;
-  PetscFunctionBeginUser;
-  e.b        = sys.b;
-  e.relative = opts.startError;
-  // J in the solver's units is J / (U^2 R) (datascale.h)
-  if (opts.energyError > 0) e.decrease = std::ldexp(0.5 * opts.energyError * opts.energyError, -(int)(2 * scale.u + scale.rows));
-  PetscCall(SNESGetKSP(snes, &ksp));
-  PetscCall(KSPConvergedDefaultCreate(&e.kspDefault));
-  PetscCall(KSPSetConvergenceTest(ksp, EnergyKSPTest, &e, NULL));
-  PetscCall(SNESSetConvergenceTest(snes, EnergySNESTest, &e, NULL));
   PetscFunctionReturn(0);
 }
 
