@@ -144,7 +144,9 @@ static PetscErrorCode Run(MPI_Comm comm)
     PipelineOptions ao = po;
     ao.withMesh        = nullptr; // the output is begun on the last mesh, known once solved
     ao.keepMesh        = !s.output.file.empty();
-    AdaptiveRefinement strategy(mesh, s.problem, ao, s.adapt, s.errorDegree);
+    AdaptOptions adapt = s.adapt;
+    if (s.nested.solveTo == NestedOptions::Discretization) adapt.solveToFraction = s.nested.fraction;
+    AdaptiveRefinement strategy(mesh, s.problem, ao, adapt, s.errorDegree);
     PetscCall(DMDestroy(&mesh)); // the strategy holds the mesh as long as it needs it
     PetscCall(SolveMeshes(s.problem, strategy));
     fine = std::move(strategy.finest);

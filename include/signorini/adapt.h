@@ -41,6 +41,10 @@ struct AdaptOptions {
   // six times the next solve's time at 131 k triangles).
   LocalRefinement refinement = LocalRefinement::BisectionAll;
   PetscInt  referenceSteps = 0; // -adapt_reference_steps: further steps whose last solution is the reference
+  // -solve_to discretization (nested.h): every step after the first stops once its algebraic error is
+  // estimated below this fraction of its discretization error, predicted from the estimate of the step
+  // before (0: every step to the full test). Not for the reference steps.
+  PetscReal solveToFraction = 0;
 };
 PetscErrorCode AdaptOptionsFromCommandLine(MPI_Comm comm, AdaptOptions &o);
 
@@ -84,6 +88,7 @@ public:
 private:
   PetscErrorCode Refine(); // the marked cells of mesh_, the solution carried to the new mesh_
   PetscErrorCode ReferenceErrors(const MeshSolution &ref); // of the kept solutions (-adapt_reference_steps)
+  PetscErrorCode SolveToDiscretization(PipelineOptions &o) const; // the stopping bound of -solve_to discretization
 
   DM                mesh_; // the mesh of the step under way
   const Problem    &problem_;
