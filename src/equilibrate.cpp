@@ -661,6 +661,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
       for (PetscInt i = start[w]; i < start[w + 1]; ++i) {
         const char *rec = (const char *)&cd.cell[list[i] / nb];
         for (size_t b = 0; b < sizeof(CellRecord); b += 64) __builtin_prefetch(rec + b);
+        __builtin_prefetch(&r.flux[(list[i] / nb) * nb], 1); // and the fluxes it adds to
       }
     }
     if (shared[v]) continue;
