@@ -653,8 +653,17 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
     for (PetscInt i = 0; i < nc * nb; ++i)
       if (!seen[space.cellVert[i]]) seen[space.cellVert[i]] = 1, order.push_back(space.cellVert[i]);
   }
-  for (const PetscInt v : order) {
-    if (!ok) break;
+  const size_t kAhead = 4;
+  for (size_t o = 0; o < order.size() && ok; ++o) {
+    const PetscInt v = order[o];
+    if (o + kAhead < order.size()) { // the cell records of a patch a few ahead: their reads missed the cache
+      const PetscInt w = order[o + kAhead];
+      for (PetscInt i = start[w]; i < start[w + 1]; ++i) {
+        const char *rec = (const char *)&cd.cell[list[i] / nb];
+        for (size_t b = 0; b < sizeof(CellRecord); b += 64) __builtin_prefetch(rec + b);
+        __builtin_prefetch(&r.flux[(list[i] / nb) * nb], 1); // and the fluxes it adds to
+      }
+    }
     if (shared[v]) continue;
     const PetscInt n = start[v + 1] - start[v], *at = &list[start[v]]; // at[e] = c * nb + corner
     corners.resize(n);
