@@ -5,7 +5,9 @@
 - bench.csv and time-per-dof.png are written, no *.tmp file is left; --repeat 0 is a clear usage error;
 - --estimate: each estimate / solve ratio is that of its run's Estimate and Solve stages, and each adaptive
   step's overhead / solve is that of the run's "adapt" row (estimate + mark + refine + redistribute + transfer);
-- --error --quick: each error / solve ratio is that of its run's Error and Solve stages."""
+- --error --quick: each error / solve ratio is that of its run's Error and Solve stages;
+- --nohier on N = 32 Gmsh files: each row is that of its run's JSON (one level, read without -refine), and
+  no mesh file is left."""
 import csv
 import json
 import os
@@ -101,6 +103,28 @@ with tempfile.TemporaryDirectory() as tmp:
     c.check(p.returncode == 0, "run/bench --error exit status %d %s" % (p.returncode, p.stderr[-400:]))
     if p.returncode == 0:
         check_error_cost(tmp, p.stdout)
+
+def check_nohier(tmp, p):
+    """--nohier: each row's Newton steps, CG iterations, set-ups and ratio contact / linear solve are those of
+    the run's JSON, the run read the file without -refine (one level), and the mesh files are removed."""
+    c.check(p.returncode == 0, "run/bench --nohier exits 0 (%s)" % (p.stderr.strip()[-300:] or "ok"))
+    with open(os.path.join(tmp, "nohier.csv")) as f:
+        rows = list(csv.DictReader(f))
+    c.check([row["element"] for row in rows] == ["p1", "cr"] and all(row["status"] == "ok" for row in rows), "one row per element: %s" % [(row["element"], row["status"]) for row in rows])
+    for row in rows:
+        with open(os.path.join(tmp, "nohier-%s-N32-np1-run1.json" % row["element"])) as f:
+            s = json.load(f)
+        v = s["solver"]
+        same = (int(row["dofs"]) == s["dofs"] and int(row["newton"]) == v["newton_iterations"] and int(row["ksp"]) == v["ksp_iterations"]
+                and int(row["amg_setups"]) == v["amg_setups"] and abs(float(row["ratio"]) - v["solve_linear_ratio"]) <= 1e-9 * v["solve_linear_ratio"])
+        c.check(same and not v["nested"] and s["refine"] == 0 and s["mesh"].endswith(".msh"),
+                "%s: row against its JSON (ratio %s, mesh %s, nested %s)" % (row["element"], row["ratio"], s["mesh"], v["nested"]))
+    left = [f for f in os.listdir(tmp) if f.endswith(".msh") or f.endswith(".tmp")]
+    c.check(not left, "no mesh file or temporary file left: %s" % left)
+
+
+with tempfile.TemporaryDirectory() as tmp:
+    check_nohier(tmp, bench(tmp, "--nohier", "--nohier-n2", "32", "--elements", "p1,cr"))
 
 with tempfile.TemporaryDirectory() as tmp:
     p = bench(tmp, "--repeat", "0")
