@@ -37,7 +37,7 @@ PetscReal MarkActive(const Release &s, const PetscScalar *u, const PetscScalar *
 
 // The post-check of the line search: X the iterate the step started from, W the new one (already
 // projected onto the bounds), before the SNES evaluates F there.
-PetscErrorCode ReleaseCheck(SNESLineSearch, Vec X, Vec, Vec W, PetscBool *, PetscBool *changedW, void *ctx)
+PetscErrorCode ReleaseCheck(SNESLineSearch ls, Vec X, Vec, Vec W, PetscBool *, PetscBool *changedW, void *ctx)
 {
   auto              &s = *static_cast<Release *>(ctx);
   MPI_Comm           comm = PetscObjectComm((PetscObject)W);
@@ -48,14 +48,14 @@ PetscErrorCode ReleaseCheck(SNESLineSearch, Vec X, Vec, Vec W, PetscBool *, Pets
   PetscFunctionBeginUser;
   PetscCall(VecGetLocalSize(W, &n));
   PetscCall(VecGetArrayRead(s.lower, &l));
-  if (s.first) { // the active set the first step worked with
+  if (s.first) { // the active set the first step worked with, from the residual the SNES holds at X
     const PetscScalar *x;
-    PetscCall(MatMult(s.A, X, s.r));
-    PetscCall(VecAXPY(s.r, -1.0, s.b));
+    Vec                F;
+    PetscCall(SNESLineSearchGetVecs(ls, NULL, &F, NULL, NULL, NULL));
     PetscCall(VecGetArrayRead(X, &x));
-    PetscCall(VecGetArrayRead(s.r, &res));
+    PetscCall(VecGetArrayRead(F, &res));
     MarkActive(s, x, l, res, n, s.active);
-    PetscCall(VecRestoreArrayRead(s.r, &res));
+    PetscCall(VecRestoreArrayRead(F, &res));
     PetscCall(VecRestoreArrayRead(X, &x));
     s.freed.assign(n, 0);
     s.first = false;
