@@ -21,7 +21,7 @@
 // squared flux difference; phi_F the RT0 basis function of unit flux), which is equivalent to
 // ||kappa^{-1/2} .|| on shape-regular cells. Any feasible sigma_a gives a guaranteed bound; this choice
 // makes the patch problem a weighted graph Laplacian on the patch's cells (faces = edges), solved by a
-// Cholesky factorisation of the size of the cell count: in 3D (about 23 cells and 70 faces per patch)
+// sparse elimination of the size of the cell count: in 3D (about 23 cells and 70 faces per patch)
 // several times cheaper than the saddle point system of the full mass matrix, with the same efficiency
 // indices on the sine problems of tests/unit_equilibrate (equal to three digits).
 // The cell constraints of a patch without Dirichlet or contact faces sum to r_a = 0: the equations are
@@ -213,6 +213,58 @@ bool SolveSPD(PetscInt N, PetscReal *L, PetscReal *b, PetscInt *start, PetscInt 
   return true;
 }
 
+// Solves L z = b in place (z in b) for L symmetric positive definite and N <= 64, row-major N x N, by
+// symmetric Gaussian elimination (L = U^T D U) in a minimum degree order: adj[i] has bit j set where
+// L_ij != 0 (i != j). The patch matrices are graph Laplacians of the patch's cells (degree <= 4), whose
+// factor in the cells' given order fills in; eliminating a cell with the fewest remaining neighbours first
+// keeps each step's neighbour set (its fill) small: on paper-5.1-3d 66 multipliers and 234 updates per
+// patch of 22 rows. The elimination graph lives in bit masks and the cells in buckets by their degree,
+// so choosing the order costs a few bit operations a step. Returns false if a pivot is not positive. L is
+// overwritten (the multipliers in the eliminated columns), adj too (adj[p]: the set p was eliminated with);
+// order, deg and d are work arrays of N entries.
+#if defined(__x86_64__) && defined(__GNUC__)
+__attribute__((target("popcnt"))) // every x86-64 processor of the last 15 years has the instruction
+#endif
+bool SolveSPDMinDegree(PetscInt N, PetscReal *L, PetscReal *b, uint64_t *adj, PetscInt *order, PetscInt *deg, PetscReal *dinv)
+{
+  // bucket[k]: the cells not yet eliminated with k neighbours left; the lowest such cell of the lowest
+  // non-empty bucket is the next pivot.
+  uint64_t bucket[65] = {0};
+  for (PetscInt i = 0; i < N; ++i) deg[i] = __builtin_popcountll(adj[i]), bucket[deg[i]] |= 1ull << i;
+  for (PetscInt t = 0; t < N; ++t) {
+    PetscInt k = 0;
+    while (!bucket[k]) ++k;
+    const PetscInt  p = __builtin_ctzll(bucket[k]);
+    const uint64_t  S = adj[p], bp = 1ull << p;
+    const PetscReal dp = L[p * N + p], *Lp = &L[p * N];
+    if (!(dp > 0)) return false;
+    const PetscReal inv = 1 / dp;
+    dinv[p] = inv, order[t] = p, bucket[k] &= ~bp;
+    PetscInt  idx[64], ns = 0; // S as a list, and row p on it
+    PetscReal lp[64];
+    for (uint64_t m = S; m; m &= m - 1) idx[ns] = __builtin_ctzll(m), lp[ns] = Lp[idx[ns]], ++ns;
+    for (PetscInt a = 0; a < ns; ++a) {
+      const PetscInt  i  = idx[a];
+      PetscReal      *Li = &L[i * N];
+      const PetscReal l  = Li[p] * inv;
+      Li[p]              = l; // the multiplier, where L's entry is read no more
+      for (PetscInt c = 0; c < ns; ++c) Li[idx[c]] -= l * lp[c];
+      b[i] -= l * b[p];
+      bucket[deg[i]] &= ~(1ull << i);
+      adj[i] = (adj[i] | S) & ~(1ull << i) & ~bp;
+      deg[i] = __builtin_popcountll(adj[i]);
+      bucket[deg[i]] |= 1ull << i;
+    }
+  }
+  for (PetscInt t = N - 1; t >= 0; --t) { // U z = D^{-1} y: z_p from the z_i of the later pivots i in its set
+    const PetscInt p = order[t];
+    PetscReal      z = b[p] * dinv[p];
+    for (uint64_t m = adj[p]; m; m &= m - 1) z -= L[__builtin_ctzll(m) * N + p] * b[__builtin_ctzll(m)];
+    b[p] = z;
+  }
+  return true;
+}
+
 // The patch problem of one vertex. Unknowns: the fluxes of the faces containing a that are free (interior
 // to the patch: one unknown for the two sides; Dirichlet; contact not yet fixed at 0). Writes the fluxes
 // of every face of every patch cell (nb per corner record, outward, 0 on the face opposite a).
@@ -229,17 +281,14 @@ public:
     n_          = n;
     if (nb_ == 3 && !generic && Chain()) return SolveChain(flux);
     MatchFaces();
+    d_.resize(n);
     for (;;) {
+      Unknowns();
       if (!SolveOnce(flux)) return false;
       bool changed = false; // contact fluxes must be >= 0: fix the negative ones at 0 and solve again
-      for (size_t u = 0; u < x_.size(); ++u)
-        if (contact_[u] && x_[u] < 0) {
-          for (const Side &s : sides_)
-            if (s.unknown == (PetscInt)u) fixedSides_.push_back({s.entry, s.face, 0.0});
-          changed = true;
-        }
+      for (const Unknown &u : unknowns_)
+        if (u.contact && u.x < 0) forced_[u.first] = 1, changed = true;
       if (!changed) return true;
-      Renumber();
     }
   }
 
@@ -410,170 +459,159 @@ private:
   bool                   cycle_ = false;
   std::vector<PetscReal> diag_, off_;
 
-  struct Side {
-    PetscInt  entry, face, unknown; // corner record, its face, the unknown (-1: fixed)
-    PetscReal sign;
-  };
-  struct Fixed {
-    PetscInt  entry, face;
-    PetscReal value;
-  };
-  // A face containing a is known by its other vertices (one in 2D, two in 3D): their global numbers,
-  // smaller first, packed in one integer.
-  struct Key {
-    uint64_t v;
-    PetscInt entry, face;
+  // Per face containing a, seen from one cell: slot e * nb + j is face j of corner record e.
+  // An unknown flux: of an interior face of the patch (two slots: outward from the first, inward to the
+  // second) or of a free boundary face (one slot). hinv: 1 / the sum of its slots' weights; c: the sum of
+  // sign * weight * (interpolant's flux - fixed flux); x: the flux, outward from the first slot's cell.
+  struct Unknown {
+    PetscInt  first, second; // slots; second -1 for a boundary face
+    bool      contact;
+    PetscReal hinv, c, x;
   };
 
-  // The faces containing a, matched between the patch's cells by their vertices' global numbers.
+  // The faces containing a, matched between the patch's cells by their other vertices' global numbers
+  // (one in 2D, two in 3D, smaller first, packed in one integer) through a small open-addressing hash
+  // table (a sort costs more at 70 faces in 3D): partner_[slot] is the other cell's slot of the face, -1
+  // for a boundary face (and for the face opposite a).
   void MatchFaces()
   {
-    // Sized once and filled by index: the growing push_back was a call per face.
-    std::vector<Key> &keys = keys_;
-    keys.resize(n_ * (nb_ - 1));
-    size_t nk = 0;
+    const PetscInt nslots = n_ * nb_;
+    size_t         size   = 16;
+    while (size < (size_t)(2 * nslots)) size *= 2;
+    table_.assign(size, -1);
+    keys_.resize(nslots);
+    partner_.resize(nslots);
+    forced_.assign(nslots, 0);
     for (PetscInt e = 0; e < n_; ++e) {
       const Corner &c = corners_[e];
       for (PetscInt j = 0; j < nb_; ++j) {
+        const PetscInt slot = e * nb_ + j;
+        partner_[slot]      = -1;
         if (j == c.corner) continue;
-        uint64_t lo = UINT32_MAX, hi = 0; // the vertices other than a and j
-        for (PetscInt i = 0; i < nb_; ++i)
-          if (i != j && i != c.corner) lo = std::min<uint64_t>(lo, (uint32_t)c.gid[i]), hi = std::max<uint64_t>(hi, (uint32_t)c.gid[i]);
-        keys[nk++] = {nb_ == 3 ? lo : (lo << 32 | hi), e, j};
+        uint64_t key;
+        if (nb_ == 3) key = (uint32_t)c.gid[3 - c.corner - j];
+        else {
+          const PetscInt *o = kOther[c.corner][j]; // the two vertices other than a and j
+          const uint32_t  p = (uint32_t)c.gid[o[0]], q = (uint32_t)c.gid[o[1]];
+          key               = p < q ? (uint64_t)p << 32 | q : (uint64_t)q << 32 | p;
+        }
+        keys_[slot] = key;
+        size_t h    = (size_t)((key * 0x9E3779B97F4A7C15ull) >> 40) & (size - 1);
+        while (table_[h] >= 0 && keys_[table_[h]] != key) h = (h + 1) & (size - 1);
+        if (table_[h] < 0) table_[h] = slot;
+        else partner_[table_[h]] = slot, partner_[slot] = table_[h];
       }
     }
-    // Pair the keys through a small open-addressing hash table (a sort costs more at 70 keys in 3D).
-    const size_t n = keys.size();
-    size_t       size = 16;
-    while (size < 2 * n) size *= 2;
-    table_.assign(size, -1);
-    partner_.assign(n, -1);
-    for (size_t i = 0; i < n; ++i) {
-      size_t h = (size_t)((keys[i].v * 0x9E3779B97F4A7C15ull) >> 40) & (size - 1);
-      while (table_[h] >= 0 && keys[table_[h]].v != keys[i].v) h = (h + 1) & (size - 1);
-      if (table_[h] < 0) table_[h] = (PetscInt)i;
-      else partner_[table_[h]] = (PetscInt)i, partner_[i] = table_[h];
-    }
-    sides_.resize(n);
-    size_t ns = 0;
-    fixedSides_.clear();
-    for (size_t i = 0; i < n; ++i) {
-      const Key &k = keys[i];
-      if (partner_[i] >= 0) {
-        if (partner_[i] < (PetscInt)i) continue; // listed with its partner
-        const Key &o = keys[partner_[i]];
-        sides_[ns++] = {k.entry, k.face, -1, 1.0};
-        sides_[ns++] = {o.entry, o.face, -1, -1.0};
-        continue;
-      }
-      const Corner  &c    = corners_[k.entry];
-      const PetscInt kind = c.kind[k.face];
-      const bool     free = kind == kFaceDirichlet || (kind == kFaceContact && vertexKind_ != kDirichlet);
-      if (free) sides_[ns++] = {k.entry, k.face, -1, 1.0};
-      else fixedSides_.push_back({k.entry, k.face, kind == kFaceNeumann ? c.neumann[k.face] : 0.0});
-    }
-    sides_.resize(ns);
-    Renumber();
   }
+  // kOther[k][j]: the two cell vertices (of a tetrahedron) other than k and j.
+  static constexpr PetscInt kOther[4][4][2] = {
+    {{0, 0}, {2, 3}, {1, 3}, {1, 2}},
+    {{2, 3}, {0, 0}, {0, 3}, {0, 2}},
+    {{1, 3}, {0, 3}, {0, 0}, {0, 1}},
+    {{1, 2}, {0, 2}, {0, 1}, {0, 0}}
+  };
 
-  // Unknown numbers for the sides not fixed; a side fixed later leaves sides_ (its pair partner cannot be
-  // fixed: only contact faces are, and they have one side).
-  void Renumber()
+  // The unknowns, in the order of their first slot, and the fixed fluxes of the other slots (0 on the
+  // face opposite a and on slots of unknowns): Neumann faces their load, Dirichlet faces of a Dirichlet
+  // vertex... (see the top of the file), and contact faces forced to 0 by an earlier solve.
+  void Unknowns()
   {
-    if (!fixedSides_.empty()) {
-      size_t kept = 0;
-      for (const Side &s : sides_) {
-        bool fixed = false;
-        for (const Fixed &f : fixedSides_) fixed |= f.entry == s.entry && f.face == s.face;
-        if (!fixed) sides_[kept++] = s;
-      }
-      sides_.resize(kept);
-    }
-    PetscInt m = 0;
-    contact_.clear();
+    unknowns_.clear();
+    fixed_.assign(n_ * nb_, 0.0);
     boundaryUnknown_ = false;
-    for (size_t i = 0; i < sides_.size(); ++i) {
-      const bool second = i > 0 && sides_[i].sign < 0;
-      sides_[i].unknown = second ? sides_[i - 1].unknown : m++;
-      if (!second) {
-        const bool paired = i + 1 < sides_.size() && sides_[i + 1].sign < 0;
-        contact_.push_back(!paired && corners_[sides_[i].entry].kind[sides_[i].face] == kFaceContact);
-        boundaryUnknown_ |= !paired;
+    for (PetscInt e = 0; e < n_; ++e) {
+      const Corner &c = corners_[e];
+      for (PetscInt j = 0; j < nb_; ++j) {
+        const PetscInt slot = e * nb_ + j, other = partner_[slot];
+        if (j == c.corner || (other >= 0 && other < slot)) continue; // the pair is listed at its first slot
+        if (other >= 0) {
+          unknowns_.push_back({slot, other, false, 0, 0, 0});
+          continue;
+        }
+        const PetscInt kind = c.kind[j];
+        const bool     free = !forced_[slot] && (kind == kFaceDirichlet || (kind == kFaceContact && vertexKind_ != kDirichlet));
+        if (free) unknowns_.push_back({slot, -1, kind == kFaceContact, 0, 0, 0}), boundaryUnknown_ = true;
+        else fixed_[slot] = kind == kFaceNeumann ? c.neumann[j] : 0.0;
       }
     }
-    x_.assign(m, 0.0);
   }
 
   bool SolveOnce(PetscReal *flux)
   {
-    const PetscInt m = (PetscInt)x_.size();
-    // y_e = fluxes of entry e = S_e x + fixed_e; objective 1/2 sum_e sum_j W_ej (y_e[j] - t_e[j])^2 with t_e
-    // the interpolant's fluxes without the face opposite a; constraint sum_j y_e[j] = sum_j t_e[j] - load_e.
-    std::vector<PetscReal> &fixed = fixed_, &rhs = rhs_, &resid = resid_; // resid: t_e - fixed_e
-    fixed.assign(n_ * nb_, 0.0);
-    rhs.assign(n_, 0.0);
-    resid.resize(n_ * nb_);
-    for (const Fixed &f : fixedSides_) fixed[f.entry * nb_ + f.face] = f.value;
+    // y_e = fluxes of entry e; objective 1/2 sum_e sum_j W_ej (y_e[j] - t_e[j])^2 with t_e the
+    // interpolant's fluxes without the face opposite a; constraint sum_j y_e[j] = sum_j t_e[j] - load_e.
+    resid_.resize(n_ * nb_); // t - fixed
+    rhs_.resize(n_);
     PetscReal volume = 0, mismatch = 0;
     for (PetscInt e = 0; e < n_; ++e) {
       const Corner &c = corners_[e];
-      rhs[e]          = -c.load;
+      rhs_[e]         = -c.load;
       for (PetscInt j = 0; j < nb_; ++j) {
         const PetscReal t = j == c.corner ? 0.0 : c.target[j];
-        resid[e * nb_ + j] = t - fixed[e * nb_ + j];
-        rhs[e] += resid[e * nb_ + j];
+        resid_[e * nb_ + j] = t - fixed_[e * nb_ + j];
+        rhs_[e] += resid_[e * nb_ + j];
       }
       volume += c.volume;
-      mismatch += rhs[e];
+      mismatch += rhs_[e];
     }
-    // Without a free boundary face the constraints sum to r_a: make them compatible, drop one.
+    // Without a free boundary face the constraints sum to r_a: make them compatible, drop the last one.
     const PetscInt rows = boundaryUnknown_ ? n_ : n_ - 1;
     if (!boundaryUnknown_)
-      for (PetscInt e = 0; e < n_; ++e) rhs[e] -= mismatch * corners_[e].volume / volume;
-    // Minimise 1/2 x^T H x - c^T x subject to B x = rhs (B: +-1 per side, in the row of its entry), H the
+      for (PetscInt e = 0; e < n_; ++e) rhs_[e] -= mismatch * corners_[e].volume / volume;
+    // Minimise 1/2 x^T H x - c^T x subject to B x = rhs (B: +-1 per slot, in the row of its entry), H the
     // diagonal weights: x = H^{-1} (c - B^T mu) with (B H^{-1} B^T) mu = B H^{-1} c - rhs, a graph
     // Laplacian on the cells (grounded by the free boundary faces, or by the dropped row).
-    h_.assign(m, 0.0);
-    c_.assign(m, 0.0);
-    for (const Side &s : sides_) {
-      const PetscReal w = corners_[s.entry].weight[s.face];
-      h_[s.unknown] += w;
-      c_[s.unknown] += s.sign * w * resid[s.entry * nb_ + s.face];
-    }
     L_.assign(rows * rows, 0.0);
     mu_.resize(rows);
-    for (PetscInt e = 0; e < rows; ++e) mu_[e] = -rhs[e];
-    for (size_t i = 0; i < sides_.size(); ++i) {
-      const Side &s = sides_[i];
-      if (s.entry >= rows) continue;
-      mu_[s.entry] += s.sign * c_[s.unknown] / h_[s.unknown];
-      // the sides of one unknown are adjacent in sides_ (a pair: +1, then -1)
-      for (size_t k = i > 0 ? i - 1 : 0; k < std::min(i + 2, sides_.size()); ++k)
-        if (sides_[k].unknown == s.unknown && sides_[k].entry < rows) L_[s.entry * rows + sides_[k].entry] += s.sign * sides_[k].sign / h_[s.unknown];
+    adj_.assign(rows, 0);
+    for (PetscInt e = 0; e < rows; ++e) mu_[e] = -rhs_[e];
+    for (Unknown &u : unknowns_) {
+      const PetscInt  e1 = u.first / nb_, e2 = u.second / nb_;
+      const PetscReal w1 = Weight(u.first);
+      PetscReal       h  = w1;
+      u.c                = w1 * resid_[u.first];
+      if (u.second >= 0) {
+        const PetscReal w2 = Weight(u.second);
+        h += w2, u.c -= w2 * resid_[u.second];
+      }
+      const PetscReal inv = 1 / h, q = u.c * inv;
+      u.hinv              = inv;
+      if (e1 < rows) L_[e1 * rows + e1] += inv, mu_[e1] += q;
+      if (u.second < 0 || e2 >= rows) continue;
+      L_[e2 * rows + e2] += inv, mu_[e2] -= q;
+      if (e1 >= rows) continue;
+      L_[e1 * rows + e2] -= inv, L_[e2 * rows + e1] -= inv;
+      if (rows <= 64) adj_[e1] |= 1ull << e2, adj_[e2] |= 1ull << e1;
     }
     start_.resize(rows + 1);
     nz_.resize(rows * (rows - 1) / 2 + 1);
-    if (!SolveSPD(rows, L_.data(), mu_.data(), start_.data(), nz_.data())) return false;
-    for (PetscInt u = 0; u < m; ++u) x_[u] = c_[u];
-    for (const Side &s : sides_)
-      if (s.entry < rows) x_[s.unknown] -= s.sign * mu_[s.entry];
-    for (PetscInt u = 0; u < m; ++u) x_[u] /= h_[u];
-    for (PetscInt i = 0; i < n_ * nb_; ++i) flux[i] = fixed[i];
-    for (const Side &s : sides_) flux[s.entry * nb_ + s.face] = s.sign * x_[s.unknown];
+    if (rows <= 64) {
+      if (!SolveSPDMinDegree(rows, L_.data(), mu_.data(), adj_.data(), start_.data(), nz_.data(), d_.data())) return false;
+    } else if (!SolveSPD(rows, L_.data(), mu_.data(), start_.data(), nz_.data())) return false;
+    for (PetscInt i = 0; i < n_ * nb_; ++i) flux[i] = fixed_[i];
+    for (Unknown &u : unknowns_) {
+      const PetscInt e1 = u.first / nb_, e2 = u.second / nb_;
+      u.x                = u.c;
+      if (e1 < rows) u.x -= mu_[e1];
+      if (u.second >= 0 && e2 < rows) u.x -= -mu_[e2];
+      u.x *= u.hinv;
+      flux[u.first] = u.x;
+      if (u.second >= 0) flux[u.second] = -u.x;
+    }
     return true;
   }
+  PetscReal Weight(PetscInt slot) const { return corners_[slot / nb_].weight[slot % nb_]; }
 
   PetscInt               nb_;
   char                   vertexKind_ = kFree;
   const Corner          *corners_ = nullptr;
   PetscInt               n_       = 0;
-  std::vector<Side>      sides_;
-  std::vector<Fixed>     fixedSides_;
-  std::vector<char>      contact_;
+  std::vector<Unknown>   unknowns_;
   bool                   boundaryUnknown_ = false;
-  std::vector<Key>       keys_;
+  std::vector<uint64_t>  keys_, adj_;
+  std::vector<char>      forced_;
   std::vector<PetscInt>  table_, partner_, start_, nz_;
-  std::vector<PetscReal> x_, h_, c_, L_, mu_, fixed_, rhs_, resid_;
+  std::vector<PetscReal> L_, mu_, fixed_, rhs_, resid_, d_;
 };
 
 } // namespace
