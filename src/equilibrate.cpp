@@ -43,40 +43,54 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
-#include <unordered_map>
+#include <memory>
 
 namespace signorini {
 
 namespace {
 
-enum FaceKind : PetscInt { kFaceOther = 0, kFaceDirichlet = 1, kFaceNeumann = 2, kFaceContact = 3 };
+enum FaceKind : char { kFaceOther = 0, kFaceDirichlet = 1, kFaceNeumann = 2, kFaceContact = 3 };
 
-// One cell as seen from one of its vertices (the patch's centre): the unit of the gather.
-struct Corner {
-  PetscInt  gid[4];     // global vertex numbers of the cell's vertices
-  PetscInt  kind[4];    // FaceKind of the cell's face j (opposite vertex j)
-  PetscInt  corner;     // which vertex of the cell is the centre a
-  PetscInt  pad;        // the reals start 8-byte aligned either way; sent as bytes
-  PetscReal weight[4];  // int_T |phi_j|^2 / kappa_T, phi_j the RT0 function of unit flux on face j
-  PetscReal target[4];  // fluxes of the RT0 interpolant of G_T: G_T . n_j |F_j| / d (psi_a G: all but face `corner`)
-  PetscReal load;       // int_T f psi_a
-  PetscReal neumann[4]; // int_{F_j} g psi_a on Neumann faces, 0 elsewhere
+// Per local cell, what the patches of its vertices read, in one record a cell (two cache lines): a patch
+// reads its cells' records where they are (the patch's corner of the cell beside them, CornerView), so
+// nothing is copied per corner. No initialisers: ComputeCellData writes every record once.
+struct CellRecord {
+  PetscInt  gid[4];    // global vertex numbers of the cell's vertices
+  char      kind[4];   // FaceKind of the cell's face j (opposite vertex j)
+  PetscInt  neumann;   // index into CellData::neumann, -1 for none
+  PetscReal weight[4]; // int_T |phi_j|^2 / kappa_T, phi_j the RT0 function of unit flux on face j
+  PetscReal target[4]; // fluxes of the RT0 interpolant of G_T: G_T . n_j |F_j| / d (psi_a G: all but face `corner`)
+  PetscReal load[4];   // int_T f psi_k
   PetscReal volume;
 };
-
-// Per local cell, what every corner record of the cell repeats, in one record a cell: a patch reads its
-// cells' records, and one record is one or two cache lines where separate arrays were six.
-struct CellRecord {
-  PetscInt  gid[4]    = {0, 0, 0, 0}; // as in Corner
-  PetscInt  kind[4]   = {kFaceOther, kFaceOther, kFaceOther, kFaceOther};
-  PetscReal weight[4] = {0, 0, 0, 0}, target[4] = {0, 0, 0, 0};
-  PetscReal load[4]   = {0, 0, 0, 0}; // int_T f psi_k
-  PetscReal volume    = 0;
-};
 struct CellData {
-  std::vector<CellRecord> cell;
-  std::unordered_map<PetscInt, std::array<PetscReal, 4>> neumann; // cell*nb + j -> int_{F_j} g psi_k, k = 0..d
+  std::unique_ptr<CellRecord[]>          cell;    // default-initialised: a zeroing pass over ~130 B a cell saved
+  std::vector<std::array<PetscReal, 16>> neumann; // per cell with Neumann faces: [j * 4 + k] = int_{F_j} g psi_k
 };
+
+// One cell as seen from one of its vertices (the patch's centre), as gathered from another rank.
+struct Corner {
+  CellRecord cell;
+  PetscInt   corner, pad; // which vertex of the cell is the centre a; the reals start 8-byte aligned either way
+  PetscReal  neumann[4];  // int_{F_j} g psi_a on Neumann faces, 0 elsewhere
+};
+
+// What a patch reads of one of its cells: the cell's record and its corner at the centre a.
+struct CornerView {
+  const CellRecord *rec;
+  const PetscReal  *nm; // int_{F_j} g psi_a at nm[j * stride]
+  PetscInt          corner, stride;
+  PetscReal         Load() const { return rec->load[corner]; }
+  PetscReal         Neumann(PetscInt j) const { return nm[j * stride]; }
+};
+const PetscReal kNoNeumann[1] = {0};
+CornerView ViewOf(const CellData &cd, PetscInt c, PetscInt k)
+{
+  const CellRecord &rec = cd.cell[c];
+  if (rec.neumann < 0) return {&rec, kNoNeumann, k, 0};
+  return {&rec, &cd.neumann[rec.neumann][k], k, 4};
+}
+CornerView ViewOf(const Corner &g) { return {&g.cell, g.neumann, g.corner, 1}; }
 
 // int_T |phi_j|^2 with phi_j = (x - X_j) / (d |T|), the diagonal of the RT0 mass matrix: exact, from
 // int_T lambda_i lambda_m = |T| (1 + delta_im) / ((d+1)(d+2)).
@@ -103,20 +117,25 @@ bool Contains(const std::vector<PetscInt> &parts, PetscInt p) { return std::find
 
 // The loads by the assembly's rules (AssembleCells, AssembleNeumann), per vertex of each cell, and the
 // cells' oscillations that come with them.
-PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, const PetscInt *gidx, CellData &cd, std::vector<PetscReal> &oscillation)
+PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, const PetscInt *gidx, CellData &cd, std::vector<PetscReal> &oscillation, std::vector<PetscReal> &cellGrad)
 {
   const PetscInt nb = space.Nb(), dim = space.dim, nc = space.NumCells();
   std::string    error;
   PetscReal      x[3], lambda[4];
   PetscFunctionBeginUser;
-  cd.cell.assign(nc, CellRecord());
+  cd.cell.reset(new CellRecord[nc]);
+  cd.neumann.clear();
   oscillation.resize(nc);
+  cellGrad.resize(nc * (dim + 1));
   std::vector<PetscReal> work;
   for (PetscInt c = 0; c < nc; ++c) {
+    PrefetchVertices(space, c + kCellsAhead, u);
     CellGeometry        g;
     const Space::Coords X = space.X(c);
     ComputeCellGeometry(dim, X, g);
     CellRecord &rec     = cd.cell[c];
+    rec                 = CellRecord{};
+    rec.neumann         = -1;
     rec.volume          = g.volume;
     const PetscReal kap = sys.Kappa(c);
     for (PetscInt j = 0; j < nb; ++j) rec.gid[j] = gidx[space.cellVert[c * nb + j]];
@@ -124,6 +143,9 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
     space.Grad(c, u, g, G);
     RT0MassDiagonal(dim, X, g.volume, rec.weight);
     for (PetscInt j = 0; j < nb; ++j) rec.weight[j] /= kap;
+    PetscReal *kg = &cellGrad[c * (dim + 1)];
+    for (PetscInt d = 0; d < dim; ++d) kg[d] = kap * G[d];
+    kg[dim] = g.volume;
     for (PetscInt j = 0; j < nb; ++j) {
       PetscReal dot = 0; // |F_j| n_j = -d |T| grad lambda_j
       for (PetscInt d = 0; d < dim; ++d) dot += kap * G[d] * g.gradLambda[j][d];
@@ -135,8 +157,8 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
     oscillation[c] = load.oscillation;
   }
   for (const BoundaryFace &bf : space.boundary) {
-    const PetscInt at = bf.cell * nb + bf.opposite;
-    PetscInt      &kind = cd.cell[bf.cell].kind[bf.opposite];
+    CellRecord &rec  = cd.cell[bf.cell];
+    char       &kind = rec.kind[bf.opposite];
     if (Contains(problem.dirichlet, bf.part)) kind = kFaceDirichlet;
     else if (Contains(problem.contact, bf.part)) kind = kFaceContact;
     else if (Contains(problem.neumann, bf.part)) {
@@ -151,7 +173,8 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
         const PetscReal gq = problem.g->Scalar(x, dim, error) * sys.faceRule.weights[q] * area;
         for (PetscInt k = 0; k < nb; ++k) share[k] += gq * lambda[k];
       }
-      cd.neumann[at] = share;
+      if (rec.neumann < 0) rec.neumann = (PetscInt)cd.neumann.size(), cd.neumann.push_back({});
+      for (PetscInt k = 0; k < nb; ++k) cd.neumann[rec.neumann][bf.opposite * 4 + k] = share[k];
     }
   }
   PetscCall(CheckAll(PetscObjectComm((PetscObject)space.dm), error.empty(), error));
@@ -160,19 +183,11 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
 
 void FillCorner(const CellData &cd, PetscInt nb, PetscInt c, PetscInt k, Corner &r)
 {
-  const CellRecord &rec = cd.cell[c];
-  r.corner              = k;
-  for (PetscInt j = 0; j < 4; ++j) { // element by element: std::copy made a library call of 16 or 32 bytes
-    r.gid[j] = rec.gid[j], r.kind[j] = rec.kind[j];
-    r.weight[j] = rec.weight[j], r.target[j] = rec.target[j], r.neumann[j] = 0;
-  }
-  for (PetscInt j = 0; j < nb; ++j)
-    if (rec.kind[j] == kFaceNeumann) {
-      const auto it = cd.neumann.find(c * nb + j);
-      if (it != cd.neumann.end()) r.neumann[j] = it->second[k];
-    }
-  r.load   = rec.load[k];
-  r.volume = rec.volume;
+  const CornerView v = ViewOf(cd, c, k);
+  r.cell             = cd.cell[c];
+  r.corner           = k;
+  r.pad              = 0;
+  for (PetscInt j = 0; j < 4; ++j) r.neumann[j] = j < nb ? v.Neumann(j) : 0.0;
 }
 
 // Solves L z = b in place (z in b) for L symmetric positive definite, row-major N x N, by Cholesky's
@@ -274,7 +289,7 @@ public:
 
   // The patch of a vertex of kind vertexKind whose cells are the n corner records. Returns false for a
   // singular system. One object serves all patches, so its work arrays are allocated once.
-  bool Solve(char vertexKind, const Corner *corners, PetscInt n, PetscReal *flux, bool generic = false)
+  bool Solve(char vertexKind, const CornerView *corners, PetscInt n, PetscReal *flux, bool generic = false)
   {
     vertexKind_ = vertexKind;
     corners_    = corners;
@@ -303,9 +318,9 @@ private:
     // Per cell, its two faces containing a and their other vertices (face j = {a, gid[3 - corner - j]}).
     ends_.resize(n_);
     for (PetscInt e = 0; e < n_; ++e) {
-      const Corner  &c  = corners_[e];
+      const CornerView  &c  = corners_[e];
       const PetscInt j1 = c.corner == 0 ? 1 : 0, j2 = c.corner == 2 ? 1 : 2;
-      ends_[e]          = {{j1, j2}, {c.gid[3 - c.corner - j1], c.gid[3 - c.corner - j2]}, {-1, -1}, {-1, -1}};
+      ends_[e]          = {{j1, j2}, {c.rec->gid[3 - c.corner - j1], c.rec->gid[3 - c.corner - j2]}, {-1, -1}, {-1, -1}};
     }
     // The cell and side across each face (-1: none): a few comparisons of small integers per pair of cells.
     for (PetscInt e = 0; e < n_; ++e)
@@ -356,11 +371,11 @@ private:
       E.free = true, E.contact = false, E.value = 0;
       if (E.leftCell >= 0 && E.rightCell >= 0) continue;
       const Link    &L    = chain_[E.leftCell >= 0 ? E.leftCell : E.rightCell];
-      const Corner  &c    = corners_[L.entry];
-      const PetscInt face = E.leftCell >= 0 ? L.right : L.left, kind = c.kind[face];
+      const CornerView  &c    = corners_[L.entry];
+      const PetscInt face = E.leftCell >= 0 ? L.right : L.left, kind = c.rec->kind[face];
       E.contact = kind == kFaceContact;
       E.free    = kind == kFaceDirichlet || (kind == kFaceContact && vertexKind_ != kDirichlet);
-      if (!E.free) E.value = kind == kFaceNeumann ? c.neumann[face] : 0.0;
+      if (!E.free) E.value = kind == kFaceNeumann ? c.Neumann(face) : 0.0;
     }
     for (;;) {
       if (!SolveChainOnce()) return false;
@@ -393,17 +408,17 @@ private:
       const Link     &L    = chain_[cell];
       const PetscInt  face = rightFace ? L.right : L.left;
       const ChainEdge &E   = edges_[rightFace ? (cell + 1) % ne : cell];
-      return corners_[L.entry].target[face] - (E.free ? 0.0 : E.value);
+      return corners_[L.entry].rec->target[face] - (E.free ? 0.0 : E.value);
     };
     for (PetscInt i = 0; i < n; ++i) {
-      const Corner &c = corners_[chain_[i].entry];
-      rhs_[i]         = -c.load + resid(i, false) + resid(i, true);
-      volume += c.volume, mismatch += rhs_[i];
+      const CornerView &c = corners_[chain_[i].entry];
+      rhs_[i]         = -c.Load() + resid(i, false) + resid(i, true);
+      volume += c.rec->volume, mismatch += rhs_[i];
     }
     // Without a free boundary face the constraints sum to r_a: make them compatible, drop the last cell's.
     const PetscInt rows = grounded ? n : n - 1;
     if (!grounded)
-      for (PetscInt i = 0; i < n; ++i) rhs_[i] -= mismatch * corners_[chain_[i].entry].volume / volume;
+      for (PetscInt i = 0; i < n; ++i) rhs_[i] -= mismatch * corners_[chain_[i].entry].rec->volume / volume;
     // Per free edge: h = the sum of its sides' weights, c = sum of sign * weight * resid (sign +1 on the
     // left cell's side, -1 on the right's when both exist).
     diag_.assign(rows, 0.0), off_.assign(rows, 0.0), mu_.resize(rows);
@@ -414,11 +429,11 @@ private:
       const bool both = E.leftCell >= 0 && E.rightCell >= 0;
       E.h = E.c = 0;
       if (E.leftCell >= 0) {
-        const PetscReal w = corners_[chain_[E.leftCell].entry].weight[chain_[E.leftCell].right];
+        const PetscReal w = corners_[chain_[E.leftCell].entry].rec->weight[chain_[E.leftCell].right];
         E.h += w, E.c += w * resid(E.leftCell, true);
       }
       if (E.rightCell >= 0) {
-        const PetscReal w = corners_[chain_[E.rightCell].entry].weight[chain_[E.rightCell].left];
+        const PetscReal w = corners_[chain_[E.rightCell].entry].rec->weight[chain_[E.rightCell].left];
         E.h += w, E.c += (both ? -w : w) * resid(E.rightCell, false);
       }
       const PetscReal inv = 1.0 / E.h;
@@ -483,16 +498,16 @@ private:
     partner_.resize(nslots);
     forced_.assign(nslots, 0);
     for (PetscInt e = 0; e < n_; ++e) {
-      const Corner &c = corners_[e];
+      const CornerView &c = corners_[e];
       for (PetscInt j = 0; j < nb_; ++j) {
         const PetscInt slot = e * nb_ + j;
         partner_[slot]      = -1;
         if (j == c.corner) continue;
         uint64_t key;
-        if (nb_ == 3) key = (uint32_t)c.gid[3 - c.corner - j];
+        if (nb_ == 3) key = (uint32_t)c.rec->gid[3 - c.corner - j];
         else {
           const PetscInt *o = kOther[c.corner][j]; // the two vertices other than a and j
-          const uint32_t  p = (uint32_t)c.gid[o[0]], q = (uint32_t)c.gid[o[1]];
+          const uint32_t  p = (uint32_t)c.rec->gid[o[0]], q = (uint32_t)c.rec->gid[o[1]];
           key               = p < q ? (uint64_t)p << 32 | q : (uint64_t)q << 32 | p;
         }
         keys_[slot] = key;
@@ -520,7 +535,7 @@ private:
     fixed_.assign(n_ * nb_, 0.0);
     boundaryUnknown_ = false;
     for (PetscInt e = 0; e < n_; ++e) {
-      const Corner &c = corners_[e];
+      const CornerView &c = corners_[e];
       for (PetscInt j = 0; j < nb_; ++j) {
         const PetscInt slot = e * nb_ + j, other = partner_[slot];
         if (j == c.corner || (other >= 0 && other < slot)) continue; // the pair is listed at its first slot
@@ -528,10 +543,10 @@ private:
           unknowns_.push_back({slot, other, false, 0, 0, 0});
           continue;
         }
-        const PetscInt kind = c.kind[j];
+        const PetscInt kind = c.rec->kind[j];
         const bool     free = !forced_[slot] && (kind == kFaceDirichlet || (kind == kFaceContact && vertexKind_ != kDirichlet));
         if (free) unknowns_.push_back({slot, -1, kind == kFaceContact, 0, 0, 0}), boundaryUnknown_ = true;
-        else fixed_[slot] = kind == kFaceNeumann ? c.neumann[j] : 0.0;
+        else fixed_[slot] = kind == kFaceNeumann ? c.Neumann(j) : 0.0;
       }
     }
   }
@@ -544,20 +559,20 @@ private:
     rhs_.resize(n_);
     PetscReal volume = 0, mismatch = 0;
     for (PetscInt e = 0; e < n_; ++e) {
-      const Corner &c = corners_[e];
-      rhs_[e]         = -c.load;
+      const CornerView &c = corners_[e];
+      rhs_[e]         = -c.Load();
       for (PetscInt j = 0; j < nb_; ++j) {
-        const PetscReal t = j == c.corner ? 0.0 : c.target[j];
+        const PetscReal t = j == c.corner ? 0.0 : c.rec->target[j];
         resid_[e * nb_ + j] = t - fixed_[e * nb_ + j];
         rhs_[e] += resid_[e * nb_ + j];
       }
-      volume += c.volume;
+      volume += c.rec->volume;
       mismatch += rhs_[e];
     }
     // Without a free boundary face the constraints sum to r_a: make them compatible, drop the last one.
     const PetscInt rows = boundaryUnknown_ ? n_ : n_ - 1;
     if (!boundaryUnknown_)
-      for (PetscInt e = 0; e < n_; ++e) rhs_[e] -= mismatch * corners_[e].volume / volume;
+      for (PetscInt e = 0; e < n_; ++e) rhs_[e] -= mismatch * corners_[e].rec->volume / volume;
     // Minimise 1/2 x^T H x - c^T x subject to B x = rhs (B: +-1 per slot, in the row of its entry), H the
     // diagonal weights: x = H^{-1} (c - B^T mu) with (B H^{-1} B^T) mu = B H^{-1} c - rhs, a graph
     // Laplacian on the cells (grounded by the free boundary faces, or by the dropped row).
@@ -600,11 +615,11 @@ private:
     }
     return true;
   }
-  PetscReal Weight(PetscInt slot) const { return corners_[slot / nb_].weight[slot % nb_]; }
+  PetscReal Weight(PetscInt slot) const { return corners_[slot / nb_].rec->weight[slot % nb_]; }
 
   PetscInt               nb_;
   char                   vertexKind_ = kFree;
-  const Corner          *corners_ = nullptr;
+  const CornerView      *corners_ = nullptr;
   PetscInt               n_       = 0;
   std::vector<Unknown>   unknowns_;
   bool                   boundaryUnknown_ = false;
@@ -637,7 +652,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, loc));
   PetscCall(VecGetArrayRead(loc, &ua));
   PetscCall(PetscLogEventBegin(cellEvent, 0, 0, 0, 0));
-  PetscCall(ComputeCellData(space, problem, sys, ua, gidx, cd, r.oscillation));
+  PetscCall(ComputeCellData(space, problem, sys, ua, gidx, cd, r.oscillation, r.cellGrad));
   PetscCall(PetscLogEventEnd(cellEvent, 0, 0, 0, 0));
   PetscCall(VecRestoreArrayRead(loc, &ua));
 
@@ -675,7 +690,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   r.flux.assign(nc * nb, 0.0);
   r.companion.clear();
   bool                   ok = true;
-  std::vector<Corner>    corners;
+  std::vector<CornerView> corners;
   std::vector<PetscInt>  cells;
   std::vector<PetscReal> out;
   Patch                  patch(space.dim);
@@ -709,7 +724,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
     out.resize(n * nb);
     for (PetscInt e = 0; e < n; ++e) {
       cells[e] = at[e] / nb;
-      FillCorner(cd, nb, cells[e], at[e] - cells[e] * nb, corners[e]);
+      corners[e] = ViewOf(cd, cells[e], at[e] - cells[e] * nb);
     }
     ok = patch.Solve(space.kindLocal[v], corners.data(), n, out.data(), generic);
     for (PetscInt e = 0; e < n && ok; ++e)
@@ -749,8 +764,12 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscCall(PetscSFGatherBegin(sf, cornerType, leafCorners.data(), rootCorners.data()));
   PetscCall(PetscSFGatherEnd(sf, cornerType, leafCorners.data(), rootCorners.data()));
   std::vector<PetscReal> rootFlux(nmulti * nb, 0.0), leafFlux(leafAt.size() * nb, 0.0);
-  for (PetscInt i = 0, off = 0; i < space.numOwned && ok; off += degree[i++])
-    if (degree[i] > 0) ok = patch.Solve(rootKind[i], &rootCorners[off], degree[i], &rootFlux[off * nb], generic);
+  for (PetscInt i = 0, off = 0; i < space.numOwned && ok; off += degree[i++]) {
+    if (degree[i] == 0) continue;
+    corners.resize(degree[i]);
+    for (PetscInt e = 0; e < degree[i]; ++e) corners[e] = ViewOf(rootCorners[off + e]);
+    ok = patch.Solve(rootKind[i], corners.data(), degree[i], &rootFlux[off * nb], generic);
+  }
   PetscCall(PetscSFScatterBegin(sf, fluxType, rootFlux.data(), leafFlux.data()));
   PetscCall(PetscSFScatterEnd(sf, fluxType, rootFlux.data(), leafFlux.data()));
   for (size_t l = 0; l < leafAt.size(); ++l)

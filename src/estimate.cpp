@@ -158,12 +158,33 @@ PetscErrorCode CellOscillation(const Space &space, const Problem &problem, const
 // The sums over the cells that the bounds need.
 enum Sum { kF2, kN2, kOsc2, kGamma, kFOsc2, kFhOsc2, kFh2, kNumSums };
 
+// CellTerms for P1 (v = u_h) from the reconstruction's kappa_T grad u_h and |T|: N_T = 0 and Fh_T = F_T,
+// and only the centroid is left of the cell's geometry (the same values, so the same sums, as the general
+// loop's).
+void CellTermsP1(const Space &space, const System &sys, const Reconstruction &r, std::vector<PetscReal> &cellEta2, PetscReal *sums)
+{
+  const PetscInt dim = space.dim, nb = space.Nb();
+  CellGeometry   g;
+  for (PetscInt c = 0; c < space.NumCells(); ++c) {
+    PrefetchVertices(space, c + kCellsAhead);
+    const Space::Coords X  = space.X(c);
+    const PetscReal    *kg = &r.cellGrad[c * (dim + 1)];
+    g.volume               = kg[dim];
+    SimplexCentroid(dim, X, g.centroid);
+    const CellFlux  sigma(dim, X, g, &r.flux[c * nb], sys.Kappa(c));
+    const PetscReal f2 = sigma.Term(dim, kg), o2 = r.oscillation[c] * r.oscillation[c], fo = std::sqrt(f2) + r.oscillation[c];
+    cellEta2[c] += f2 + o2;
+    sums[kF2] += f2, sums[kOsc2] += o2, sums[kFOsc2] += fo * fo, sums[kFhOsc2] += fo * fo, sums[kFh2] += f2;
+  }
+}
+
 // The cell terms F_T^2, N_T^2 and osc_T^2 into the indicators and the local sums: F^2, N^2, osc^2,
 // sum_T (F_T + osc_T)^2, sum_T (Fh_T + osc_T)^2 and Fh^2 with Fh_T = ||kappa^{-1/2}(kappa grad u_h - sigma)||_T.
 // With vertexSums (CR), also the per-vertex sums ImproveCompanion starts from.
 void CellTerms(const Space &space, const System &sys, const Reconstruction &r, const PetscScalar *a, std::vector<PetscReal> &cellEta2, PetscReal *sums, std::vector<PetscReal> *vertexSums)
 {
   const PetscInt dim = space.dim, nb = space.Nb();
+  if (!r.cellGrad.empty()) return CellTermsP1(space, sys, r, cellEta2, sums);
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
     const Space::Coords X = space.X(c);
     CellGeometry        g;

@@ -52,6 +52,9 @@ struct Reconstruction {
   // Per local cell, h_T / pi kappa_T^{-1/2} ||f - Pi_0 f||_T (see CellLoad in assembly.h), from the loads
   // that the flux needed; empty: the estimate gets them itself.
   std::vector<PetscReal> oscillation;
+  // P1: per local cell kappa_T grad u_h (dim values) and |T|, as the flux had them, so that the estimate
+  // need not compute the cell's geometry and gradient again; empty: it computes them.
+  std::vector<PetscReal> cellGrad;
 };
 
 struct Estimate {
@@ -64,6 +67,20 @@ struct Estimate {
   std::vector<PetscReal> cellEta2; // per local cell: its indicator squared (flux, nonconformity, oscillation and contact parts of the cell)
   double    seconds = 0;       // max over ranks
 };
+
+// The estimate's cell loops read each cell's vertex coordinates (and values) where the vertex numbering,
+// unlike the cells', is scattered over memory (a mesh refined in levels numbers them by other rules): they
+// ask for the vertices of the cell kCellsAhead ahead, whose reads then no longer wait for memory.
+constexpr PetscInt kCellsAhead = 16;
+inline void PrefetchVertices(const Space &space, PetscInt c, const PetscScalar *u = nullptr)
+{
+  if (c >= space.NumCells()) return;
+  for (PetscInt k = 0; k <= space.dim; ++k) {
+    const PetscInt v = space.cellVert[c * (space.dim + 1) + k];
+    __builtin_prefetch(&space.vertX[v * space.dim]);
+    if (u) __builtin_prefetch(&u[v]);
+  }
+}
 
 // Per element, from the solution u (global vector) of the assembled system.
 PetscErrorCode ReconstructCR(const Space &space, const Problem &problem, const System &sys, Vec u, Reconstruction &r);
