@@ -113,6 +113,10 @@ void RT0MassDiagonal(PetscInt dim, const PetscReal *X, PetscReal volume, PetscRe
   }
 }
 
+// The cell of a (cell, corner) index c * nb + corner: a shift or a division by the constant 3, where a
+// division by the variable nb cost tens of cycles, and the patches make one per corner.
+inline PetscInt CellOf(PetscInt i, PetscInt nb) { return nb == 4 ? i >> 2 : i / 3; }
+
 bool Contains(const std::vector<PetscInt> &parts, PetscInt p) { return std::find(parts.begin(), parts.end(), p) != parts.end(); }
 
 // The loads by the assembly's rules (AssembleCells, AssembleNeumann), per vertex of each cell, and the
@@ -134,7 +138,7 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
     const Space::Coords X = space.X(c);
     ComputeCellGeometry(dim, X, g);
     CellRecord &rec     = cd.cell[c];
-    rec                 = CellRecord{};
+    for (PetscInt j = 0; j < 4; ++j) rec.gid[j] = 0, rec.kind[j] = kFaceOther, rec.weight[j] = rec.target[j] = rec.load[j] = 0;
     rec.neumann         = -1;
     rec.volume          = g.volume;
     const PetscReal kap = sys.Kappa(c);
@@ -480,6 +484,7 @@ private:
   // sign * weight * (interpolant's flux - fixed flux); x: the flux, outward from the first slot's cell.
   struct Unknown {
     PetscInt  first, second; // slots; second -1 for a boundary face
+    PetscInt  e1, e2;        // their corner records (e2 -1 for a boundary face)
     bool      contact;
     PetscReal hinv, c, x;
   };
@@ -491,10 +496,10 @@ private:
   void MatchFaces()
   {
     const PetscInt nslots = n_ * nb_;
-    size_t         size   = 16;
+    size_t         size   = std::max<size_t>(table_.size(), 16);
     while (size < (size_t)(2 * nslots)) size *= 2;
-    table_.assign(size, -1);
-    keys_.resize(nslots);
+    if (size > table_.size() || stamp_ == INT32_MAX) table_.assign(size, Bucket{0, -1, 0}), stamp_ = 0;
+    ++stamp_; // the buckets of earlier patches (an older stamp) count as empty: no clearing per patch
     partner_.resize(nslots);
     forced_.assign(nslots, 0);
     for (PetscInt e = 0; e < n_; ++e) {
@@ -510,11 +515,11 @@ private:
           const uint32_t  p = (uint32_t)c.rec->gid[o[0]], q = (uint32_t)c.rec->gid[o[1]];
           key               = p < q ? (uint64_t)p << 32 | q : (uint64_t)q << 32 | p;
         }
-        keys_[slot] = key;
-        size_t h    = (size_t)((key * 0x9E3779B97F4A7C15ull) >> 40) & (size - 1);
-        while (table_[h] >= 0 && keys_[table_[h]] != key) h = (h + 1) & (size - 1);
-        if (table_[h] < 0) table_[h] = slot;
-        else partner_[table_[h]] = slot, partner_[slot] = table_[h];
+        size_t  h = (size_t)((key * 0x9E3779B97F4A7C15ull) >> 40) & (size - 1);
+        Bucket *b = &table_[h];
+        while (b->stamp == stamp_ && b->key != key) h = (h + 1) & (size - 1), b = &table_[h];
+        if (b->stamp != stamp_) *b = {key, slot, stamp_};
+        else partner_[b->slot] = slot, partner_[slot] = b->slot;
       }
     }
   }
@@ -540,12 +545,12 @@ private:
         const PetscInt slot = e * nb_ + j, other = partner_[slot];
         if (j == c.corner || (other >= 0 && other < slot)) continue; // the pair is listed at its first slot
         if (other >= 0) {
-          unknowns_.push_back({slot, other, false, 0, 0, 0});
+          unknowns_.push_back({slot, other, e, Entry(other), false, 0, 0, 0});
           continue;
         }
         const PetscInt kind = c.rec->kind[j];
         const bool     free = !forced_[slot] && (kind == kFaceDirichlet || (kind == kFaceContact && vertexKind_ != kDirichlet));
-        if (free) unknowns_.push_back({slot, -1, kind == kFaceContact, 0, 0, 0}), boundaryUnknown_ = true;
+        if (free) unknowns_.push_back({slot, -1, e, -1, kind == kFaceContact, 0, 0, 0}), boundaryUnknown_ = true;
         else fixed_[slot] = kind == kFaceNeumann ? c.Neumann(j) : 0.0;
       }
     }
@@ -561,11 +566,10 @@ private:
     for (PetscInt e = 0; e < n_; ++e) {
       const CornerView &c = corners_[e];
       rhs_[e]         = -c.Load();
-      for (PetscInt j = 0; j < nb_; ++j) {
-        const PetscReal t = j == c.corner ? 0.0 : c.rec->target[j];
-        resid_[e * nb_ + j] = t - fixed_[e * nb_ + j];
-        rhs_[e] += resid_[e * nb_ + j];
-      }
+      PetscReal *r = &resid_[e * nb_];
+      for (PetscInt j = 0; j < nb_; ++j) r[j] = c.rec->target[j] - fixed_[e * nb_ + j];
+      r[c.corner] = 0; // the face opposite a: no target, flux 0
+      for (PetscInt j = 0; j < nb_; ++j) rhs_[e] += r[j];
       volume += c.rec->volume;
       mismatch += rhs_[e];
     }
@@ -581,12 +585,12 @@ private:
     adj_.assign(rows, 0);
     for (PetscInt e = 0; e < rows; ++e) mu_[e] = -rhs_[e];
     for (Unknown &u : unknowns_) {
-      const PetscInt  e1 = u.first / nb_, e2 = u.second / nb_;
-      const PetscReal w1 = Weight(u.first);
+      const PetscInt  e1 = u.e1, e2 = u.e2;
+      const PetscReal w1 = corners_[e1].rec->weight[u.first - e1 * nb_];
       PetscReal       h  = w1;
       u.c                = w1 * resid_[u.first];
       if (u.second >= 0) {
-        const PetscReal w2 = Weight(u.second);
+        const PetscReal w2 = corners_[e2].rec->weight[u.second - e2 * nb_];
         h += w2, u.c -= w2 * resid_[u.second];
       }
       const PetscReal inv = 1 / h, q = u.c * inv;
@@ -605,7 +609,7 @@ private:
     } else if (!SolveSPD(rows, L_.data(), mu_.data(), start_.data(), nz_.data())) return false;
     for (PetscInt i = 0; i < n_ * nb_; ++i) flux[i] = fixed_[i];
     for (Unknown &u : unknowns_) {
-      const PetscInt e1 = u.first / nb_, e2 = u.second / nb_;
+      const PetscInt e1 = u.e1, e2 = u.e2;
       u.x                = u.c;
       if (e1 < rows) u.x -= mu_[e1];
       if (u.second >= 0 && e2 < rows) u.x -= -mu_[e2];
@@ -615,7 +619,7 @@ private:
     }
     return true;
   }
-  PetscReal Weight(PetscInt slot) const { return corners_[slot / nb_].rec->weight[slot % nb_]; }
+  PetscInt Entry(PetscInt slot) const { return CellOf(slot, nb_); } // the slot's corner record
 
   PetscInt               nb_;
   char                   vertexKind_ = kFree;
@@ -623,9 +627,15 @@ private:
   PetscInt               n_       = 0;
   std::vector<Unknown>   unknowns_;
   bool                   boundaryUnknown_ = false;
-  std::vector<uint64_t>  keys_, adj_;
+  struct Bucket {
+    uint64_t key;
+    PetscInt slot, stamp;
+  };
+  std::vector<Bucket>    table_;
+  PetscInt               stamp_ = 0;
+  std::vector<uint64_t>  adj_;
   std::vector<char>      forced_;
-  std::vector<PetscInt>  table_, partner_, start_, nz_;
+  std::vector<PetscInt>  partner_, start_, nz_;
   std::vector<PetscReal> L_, mu_, fixed_, rhs_, resid_, d_;
 };
 
@@ -656,20 +666,29 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscCall(PetscLogEventEnd(cellEvent, 0, 0, 0, 0));
   PetscCall(VecRestoreArrayRead(loc, &ua));
 
-  // Local cells per vertex (CSR), and which vertices have cells on other ranks too (their count summed
-  // over ranks is larger).
-  std::vector<PetscInt> start(nv + 1, 0), list(nc * nb);
-  for (PetscInt i = 0; i < nc * nb; ++i) ++start[space.cellVert[i] + 1];
-  for (PetscInt v = 0; v < nv; ++v) start[v + 1] += start[v];
+  // The vertices in the order in which the cells first reach them (pos: a vertex's place in it), which is
+  // the order of the patches below: the cells of consecutive patches then lie close in memory, where the
+  // vertex order may scatter them (a mesh refined in levels numbers cells and vertices by different
+  // rules), which made the patches' reads of the cell data and writes of the fluxes wait for memory. The
+  // local cells of each vertex (CSR, by that order: the patches read it front to back), and which vertices
+  // have cells on other ranks too (their count summed over ranks is larger).
+  std::vector<PetscInt> order, pos(nv, -1), start(nv + 1, 0), list(nc * nb);
+  order.reserve(nv);
+  for (PetscInt i = 0; i < nc * nb; ++i)
+    if (pos[space.cellVert[i]] < 0) pos[space.cellVert[i]] = (PetscInt)order.size(), order.push_back(space.cellVert[i]);
+  for (PetscInt v = 0; v < nv; ++v)
+    if (pos[v] < 0) pos[v] = (PetscInt)order.size(), order.push_back(v); // in no local cell (none expected)
+  for (PetscInt i = 0; i < nc * nb; ++i) ++start[pos[space.cellVert[i]] + 1];
+  for (PetscInt o = 0; o < nv; ++o) start[o + 1] += start[o];
   {
     std::vector<PetscInt> next(start.begin(), start.end() - 1);
-    for (PetscInt i = 0; i < nc * nb; ++i) list[next[space.cellVert[i]]++] = i; // i = c * nb + corner
+    for (PetscInt i = 0; i < nc * nb; ++i) list[next[pos[space.cellVert[i]]]++] = i; // i = c * nb + corner
   }
   Vec          total;
   PetscScalar *la;
   PetscCall(DMGetGlobalVector(space.dm, &total));
   PetscCall(VecGetArray(loc, &la));
-  for (PetscInt v = 0; v < nv; ++v) la[v] = start[v + 1] - start[v];
+  for (PetscInt v = 0; v < nv; ++v) la[v] = start[pos[v] + 1] - start[pos[v]];
   PetscCall(VecRestoreArray(loc, &la));
   PetscCall(VecSet(total, 0));
   PetscCall(DMLocalToGlobal(space.dm, loc, ADD_VALUES, total));
@@ -677,7 +696,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscCall(DMRestoreGlobalVector(space.dm, &total));
   std::vector<char> shared(nv);
   PetscCall(VecGetArrayRead(loc, &ua));
-  for (PetscInt v = 0; v < nv; ++v) shared[v] = PetscRealPart(ua[v]) > start[v + 1] - start[v] + 0.5;
+  for (PetscInt v = 0; v < nv; ++v) shared[v] = PetscRealPart(ua[v]) > start[pos[v] + 1] - start[pos[v]] + 0.5;
   PetscCall(VecRestoreArrayRead(loc, &ua));
   PetscCall(DMRestoreLocalVector(space.dm, &loc));
 
@@ -694,36 +713,27 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   std::vector<PetscInt>  cells;
   std::vector<PetscReal> out;
   Patch                  patch(space.dim);
-  // Patches on this rank alone, in the order in which the cells first reach their vertices: the cells of
-  // consecutive patches then lie close in memory, where the vertex order may scatter them (a mesh refined
-  // in levels numbers cells and vertices by different rules), which made the patches' reads of the cell
-  // data and writes of the fluxes wait for memory.
+  // Patches on this rank alone, in the order of `order`.
   PetscCall(PetscLogEventBegin(patchEvent, 0, 0, 0, 0));
-  std::vector<PetscInt> order;
-  {
-    std::vector<char> seen(nv, 0);
-    order.reserve(nv);
-    for (PetscInt i = 0; i < nc * nb; ++i)
-      if (!seen[space.cellVert[i]]) seen[space.cellVert[i]] = 1, order.push_back(space.cellVert[i]);
-  }
-  const size_t kAhead = 4;
-  for (size_t o = 0; o < order.size() && ok; ++o) {
+  const PetscInt kAhead = 4;
+  for (PetscInt o = 0; o < nv && ok; ++o) {
     const PetscInt v = order[o];
-    if (o + kAhead < order.size()) { // the cell records of a patch a few ahead: their reads missed the cache
-      const PetscInt w = order[o + kAhead];
+    if (o + kAhead < nv) { // the cell records of a patch a few ahead: their reads missed the cache
+      const PetscInt w = o + kAhead;
       for (PetscInt i = start[w]; i < start[w + 1]; ++i) {
-        const char *rec = (const char *)&cd.cell[list[i] / nb];
+        const PetscInt c   = CellOf(list[i], nb);
+        const char    *rec = (const char *)&cd.cell[c];
         for (size_t b = 0; b < sizeof(CellRecord); b += 64) __builtin_prefetch(rec + b);
-        __builtin_prefetch(&r.flux[(list[i] / nb) * nb], 1); // and the fluxes it adds to
+        __builtin_prefetch(&r.flux[c * nb], 1); // and the fluxes it adds to
       }
     }
-    if (shared[v]) continue;
-    const PetscInt n = start[v + 1] - start[v], *at = &list[start[v]]; // at[e] = c * nb + corner
+    const PetscInt n = start[o + 1] - start[o], *at = &list[start[o]]; // at[e] = c * nb + corner
+    if (shared[v] || n == 0) continue;
     corners.resize(n);
     cells.resize(n);
     out.resize(n * nb);
     for (PetscInt e = 0; e < n; ++e) {
-      cells[e] = at[e] / nb;
+      cells[e] = CellOf(at[e], nb);
       corners[e] = ViewOf(cd, cells[e], at[e] - cells[e] * nb);
     }
     ok = patch.Solve(space.kindLocal[v], corners.data(), n, out.data(), generic);
