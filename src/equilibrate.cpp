@@ -94,7 +94,10 @@ CornerView ViewOf(const Corner &g) { return {&g.cell, g.neumann, g.corner, 1}; }
 
 // int_T |phi_j|^2 with phi_j = (x - X_j) / (d |T|), the diagonal of the RT0 mass matrix: exact, from
 // int_T lambda_i lambda_m = |T| (1 + delta_im) / ((d+1)(d+2)).
-void RT0MassDiagonal(PetscInt dim, const PetscReal *X, PetscReal volume, PetscReal *M)
+// (dim a template parameter: the cell loops run once a cell over millions of cells, and with the
+// dimension known the compiler unrolls their short loops and keeps the sums in registers.)
+template <PetscInt dim>
+void RT0MassDiagonal(const PetscReal *X, PetscReal volume, PetscReal *M)
 {
   const PetscInt  nb    = dim + 1;
   const PetscReal scale = 1.0 / (dim * dim * volume * (dim + 1) * (dim + 2));
@@ -121,6 +124,36 @@ bool Contains(const std::vector<PetscInt> &parts, PetscInt p) { return std::find
 
 // The loads by the assembly's rules (AssembleCells, AssembleNeumann), per vertex of each cell, and the
 // cells' oscillations that come with them.
+// The record, kappa_T grad u_h and |T| (cellGrad), and the oscillation of cell c.
+template <PetscInt dim>
+void CellDataOf(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, const PetscInt *gidx, PetscInt c, CellRecord &rec, PetscReal *kg, PetscReal &oscillation, std::vector<PetscReal> &work, std::string &error)
+{
+  constexpr PetscInt  nb = dim + 1;
+  CellGeometry        g;
+  const Space::Coords X = space.X(c);
+  ComputeCellGeometry(dim, X, g);
+  for (PetscInt j = 0; j < 4; ++j) rec.gid[j] = 0, rec.kind[j] = kFaceOther, rec.weight[j] = rec.target[j] = rec.load[j] = 0;
+  rec.neumann         = -1;
+  rec.volume          = g.volume;
+  const PetscReal kap = sys.Kappa(c);
+  for (PetscInt j = 0; j < nb; ++j) rec.gid[j] = gidx[space.cellVert[c * nb + j]];
+  PetscReal G[3];
+  space.Grad(c, u, g, G);
+  RT0MassDiagonal<dim>(X, g.volume, rec.weight);
+  for (PetscInt j = 0; j < nb; ++j) rec.weight[j] /= kap;
+  for (PetscInt d = 0; d < dim; ++d) kg[d] = kap * G[d];
+  kg[dim] = g.volume;
+  for (PetscInt j = 0; j < nb; ++j) {
+    PetscReal dot = 0; // |F_j| n_j = -d |T| grad lambda_j
+    for (PetscInt d = 0; d < dim; ++d) dot += kap * G[d] * g.gradLambda[j][d];
+    rec.target[j] = -g.volume * dot;
+  }
+  CellLoad load;
+  GetCellLoad(space, problem, sys, c, X, g, work, load, error);
+  for (PetscInt k = 0; k < nb; ++k) rec.load[k] = load.moment[k];
+  oscillation = load.oscillation;
+}
+
 PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, const PetscInt *gidx, CellData &cd, std::vector<PetscReal> &oscillation, std::vector<PetscReal> &cellGrad)
 {
   const PetscInt nb = space.Nb(), dim = space.dim, nc = space.NumCells();
@@ -134,31 +167,8 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
   std::vector<PetscReal> work;
   for (PetscInt c = 0; c < nc; ++c) {
     PrefetchVertices(space, c + kCellsAhead, u);
-    CellGeometry        g;
-    const Space::Coords X = space.X(c);
-    ComputeCellGeometry(dim, X, g);
-    CellRecord &rec     = cd.cell[c];
-    for (PetscInt j = 0; j < 4; ++j) rec.gid[j] = 0, rec.kind[j] = kFaceOther, rec.weight[j] = rec.target[j] = rec.load[j] = 0;
-    rec.neumann         = -1;
-    rec.volume          = g.volume;
-    const PetscReal kap = sys.Kappa(c);
-    for (PetscInt j = 0; j < nb; ++j) rec.gid[j] = gidx[space.cellVert[c * nb + j]];
-    PetscReal       G[3];
-    space.Grad(c, u, g, G);
-    RT0MassDiagonal(dim, X, g.volume, rec.weight);
-    for (PetscInt j = 0; j < nb; ++j) rec.weight[j] /= kap;
-    PetscReal *kg = &cellGrad[c * (dim + 1)];
-    for (PetscInt d = 0; d < dim; ++d) kg[d] = kap * G[d];
-    kg[dim] = g.volume;
-    for (PetscInt j = 0; j < nb; ++j) {
-      PetscReal dot = 0; // |F_j| n_j = -d |T| grad lambda_j
-      for (PetscInt d = 0; d < dim; ++d) dot += kap * G[d] * g.gradLambda[j][d];
-      rec.target[j] = -g.volume * dot;
-    }
-    CellLoad load;
-    GetCellLoad(space, problem, sys, c, X, g, work, load, error);
-    for (PetscInt k = 0; k < nb; ++k) rec.load[k] = load.moment[k];
-    oscillation[c] = load.oscillation;
+    if (dim == 2) CellDataOf<2>(space, problem, sys, u, gidx, c, cd.cell[c], &cellGrad[c * 3], oscillation[c], work, error);
+    else CellDataOf<3>(space, problem, sys, u, gidx, c, cd.cell[c], &cellGrad[c * 4], oscillation[c], work, error);
   }
   for (const BoundaryFace &bf : space.boundary) {
     CellRecord &rec  = cd.cell[bf.cell];
@@ -575,8 +585,10 @@ private:
     }
     // Without a free boundary face the constraints sum to r_a: make them compatible, drop the last one.
     const PetscInt rows = boundaryUnknown_ ? n_ : n_ - 1;
-    if (!boundaryUnknown_)
-      for (PetscInt e = 0; e < n_; ++e) rhs_[e] -= mismatch * corners_[e].rec->volume / volume;
+    if (!boundaryUnknown_) {
+      const PetscReal share = mismatch / volume;
+      for (PetscInt e = 0; e < n_; ++e) rhs_[e] -= share * corners_[e].rec->volume;
+    }
     // Minimise 1/2 x^T H x - c^T x subject to B x = rhs (B: +-1 per slot, in the row of its entry), H the
     // diagonal weights: x = H^{-1} (c - B^T mu) with (B H^{-1} B^T) mu = B H^{-1} c - rhs, a graph
     // Laplacian on the cells (grounded by the free boundary faces, or by the dropped row).
