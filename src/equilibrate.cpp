@@ -55,13 +55,13 @@ enum FaceKind : char { kFaceOther = 0, kFaceDirichlet = 1, kFaceNeumann = 2, kFa
 // reads its cells' records where they are (the patch's corner of the cell beside them, CornerView), so
 // nothing is copied per corner. No initialisers: ComputeCellData writes every record once.
 struct CellRecord {
-  PetscInt  gid[4];    // global vertex numbers of the cell's vertices
   char      kind[4];   // FaceKind of the cell's face j (opposite vertex j)
   PetscInt  neumann;   // index into CellData::neumann, -1 for none
   PetscReal weight[4]; // int_T |phi_j|^2 / kappa_T, phi_j the RT0 function of unit flux on face j
   PetscReal target[4]; // fluxes of the RT0 interpolant of G_T: G_T . n_j |F_j| / d (psi_a G: all but face `corner`)
   PetscReal load[4];   // int_T f psi_k
   PetscReal volume;
+  PetscReal kg[3];     // kappa_T grad u_h: the estimate's cell terms once the flux is known
 };
 struct CellData {
   std::unique_ptr<CellRecord[]>          cell;    // default-initialised: a zeroing pass over ~130 B a cell saved
@@ -71,6 +71,7 @@ struct CellData {
 // One cell as seen from one of its vertices (the patch's centre), as gathered from another rank.
 struct Corner {
   CellRecord cell;
+  PetscInt   gid[4];      // global vertex numbers of the cell's vertices
   PetscInt   corner, pad; // which vertex of the cell is the centre a; the reals start 8-byte aligned either way
   PetscReal  neumann[4];  // int_{F_j} g psi_a on Neumann faces, 0 elsewhere
 };
@@ -78,19 +79,22 @@ struct Corner {
 // What a patch reads of one of its cells: the cell's record and its corner at the centre a.
 struct CornerView {
   const CellRecord *rec;
-  const PetscReal  *nm; // int_{F_j} g psi_a at nm[j * stride]
+  const PetscInt   *vert; // the cell's vertices, by numbers unique within the patch (local or global)
+  const PetscReal  *nm;   // int_{F_j} g psi_a at nm[j * stride]
   PetscInt          corner, stride;
   PetscReal         Load() const { return rec->load[corner]; }
   PetscReal         Neumann(PetscInt j) const { return nm[j * stride]; }
 };
 const PetscReal kNoNeumann[1] = {0};
-CornerView ViewOf(const CellData &cd, PetscInt c, PetscInt k)
+// A local patch matches faces by the local vertex numbers, a gathered one by the global ones.
+CornerView ViewOf(const CellData &cd, const Space &space, PetscInt c, PetscInt k)
 {
-  const CellRecord &rec = cd.cell[c];
-  if (rec.neumann < 0) return {&rec, kNoNeumann, k, 0};
-  return {&rec, &cd.neumann[rec.neumann][k], k, 4};
+  const CellRecord &rec  = cd.cell[c];
+  const PetscInt   *vert = &space.cellVert[c * space.Nb()];
+  if (rec.neumann < 0) return {&rec, vert, kNoNeumann, k, 0};
+  return {&rec, vert, &cd.neumann[rec.neumann][k], k, 4};
 }
-CornerView ViewOf(const Corner &g) { return {&g.cell, g.neumann, g.corner, 1}; }
+CornerView ViewOf(const Corner &g) { return {&g.cell, g.gid, g.neumann, g.corner, 1}; }
 
 // int_T |phi_j|^2 with phi_j = (x - X_j) / (d |T|), the diagonal of the RT0 mass matrix: exact, from
 // int_T lambda_i lambda_m = |T| (1 + delta_im) / ((d+1)(d+2)).
@@ -124,25 +128,23 @@ bool Contains(const std::vector<PetscInt> &parts, PetscInt p) { return std::find
 
 // The loads by the assembly's rules (AssembleCells, AssembleNeumann), per vertex of each cell, and the
 // cells' oscillations that come with them.
-// The record, kappa_T grad u_h and |T| (cellGrad), and the oscillation of cell c.
+// The record and the oscillation of cell c.
 template <PetscInt dim>
-void CellDataOf(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, const PetscInt *gidx, PetscInt c, CellRecord &rec, PetscReal *kg, PetscReal &oscillation, std::vector<PetscReal> &work, std::string &error)
+void CellDataOf(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, PetscInt c, CellRecord &rec, PetscReal &oscillation, std::vector<PetscReal> &work, std::string &error)
 {
   constexpr PetscInt  nb = dim + 1;
   CellGeometry        g;
   const Space::Coords X = space.X(c);
   ComputeCellGeometry(dim, X, g);
-  for (PetscInt j = 0; j < 4; ++j) rec.gid[j] = 0, rec.kind[j] = kFaceOther, rec.weight[j] = rec.target[j] = rec.load[j] = 0;
+  for (PetscInt j = 0; j < 4; ++j) rec.kind[j] = kFaceOther, rec.weight[j] = rec.target[j] = rec.load[j] = 0;
   rec.neumann         = -1;
   rec.volume          = g.volume;
   const PetscReal kap = sys.Kappa(c);
-  for (PetscInt j = 0; j < nb; ++j) rec.gid[j] = gidx[space.cellVert[c * nb + j]];
   PetscReal G[3];
   space.Grad(c, u, g, G);
   RT0MassDiagonal<dim>(X, g.volume, rec.weight);
   for (PetscInt j = 0; j < nb; ++j) rec.weight[j] /= kap;
-  for (PetscInt d = 0; d < dim; ++d) kg[d] = kap * G[d];
-  kg[dim] = g.volume;
+  for (PetscInt d = 0; d < 3; ++d) rec.kg[d] = d < dim ? kap * G[d] : 0;
   for (PetscInt j = 0; j < nb; ++j) {
     PetscReal dot = 0; // |F_j| n_j = -d |T| grad lambda_j
     for (PetscInt d = 0; d < dim; ++d) dot += kap * G[d] * g.gradLambda[j][d];
@@ -154,7 +156,7 @@ void CellDataOf(const Space &space, const Problem &problem, const System &sys, c
   oscillation = load.oscillation;
 }
 
-PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, const PetscInt *gidx, CellData &cd, std::vector<PetscReal> &oscillation, std::vector<PetscReal> &cellGrad)
+PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, CellData &cd, std::vector<PetscReal> &oscillation)
 {
   const PetscInt nb = space.Nb(), dim = space.dim, nc = space.NumCells();
   std::string    error;
@@ -163,12 +165,11 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
   cd.cell.reset(new CellRecord[nc]);
   cd.neumann.clear();
   oscillation.resize(nc);
-  cellGrad.resize(nc * (dim + 1));
   std::vector<PetscReal> work;
   for (PetscInt c = 0; c < nc; ++c) {
     PrefetchVertices(space, c + kCellsAhead, u);
-    if (dim == 2) CellDataOf<2>(space, problem, sys, u, gidx, c, cd.cell[c], &cellGrad[c * 3], oscillation[c], work, error);
-    else CellDataOf<3>(space, problem, sys, u, gidx, c, cd.cell[c], &cellGrad[c * 4], oscillation[c], work, error);
+    if (dim == 2) CellDataOf<2>(space, problem, sys, u, c, cd.cell[c], oscillation[c], work, error);
+    else CellDataOf<3>(space, problem, sys, u, c, cd.cell[c], oscillation[c], work, error);
   }
   for (const BoundaryFace &bf : space.boundary) {
     CellRecord &rec  = cd.cell[bf.cell];
@@ -195,13 +196,14 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
   PetscFunctionReturn(0);
 }
 
-void FillCorner(const CellData &cd, PetscInt nb, PetscInt c, PetscInt k, Corner &r)
+void FillCorner(const CellData &cd, const Space &space, const PetscInt *gidx, PetscInt c, PetscInt k, Corner &r)
 {
-  const CornerView v = ViewOf(cd, c, k);
-  r.cell             = cd.cell[c];
-  r.corner           = k;
-  r.pad              = 0;
-  for (PetscInt j = 0; j < 4; ++j) r.neumann[j] = j < nb ? v.Neumann(j) : 0.0;
+  const PetscInt   nb = space.Nb();
+  const CornerView v  = ViewOf(cd, space, c, k);
+  r.cell              = cd.cell[c];
+  r.corner            = k;
+  r.pad               = 0;
+  for (PetscInt j = 0; j < 4; ++j) r.gid[j] = j < nb ? gidx[v.vert[j]] : 0, r.neumann[j] = j < nb ? v.Neumann(j) : 0.0;
 }
 
 // Solves L z = b in place (z in b) for L symmetric positive definite, row-major N x N, by Cholesky's
@@ -334,7 +336,7 @@ private:
     for (PetscInt e = 0; e < n_; ++e) {
       const CornerView  &c  = corners_[e];
       const PetscInt j1 = c.corner == 0 ? 1 : 0, j2 = c.corner == 2 ? 1 : 2;
-      ends_[e]          = {{j1, j2}, {c.rec->gid[3 - c.corner - j1], c.rec->gid[3 - c.corner - j2]}, {-1, -1}, {-1, -1}};
+      ends_[e]          = {{j1, j2}, {c.vert[3 - c.corner - j1], c.vert[3 - c.corner - j2]}, {-1, -1}, {-1, -1}};
     }
     // The cell and side across each face (-1: none): a few comparisons of small integers per pair of cells.
     for (PetscInt e = 0; e < n_; ++e)
@@ -519,10 +521,10 @@ private:
         partner_[slot]      = -1;
         if (j == c.corner) continue;
         uint64_t key;
-        if (nb_ == 3) key = (uint32_t)c.rec->gid[3 - c.corner - j];
+        if (nb_ == 3) key = (uint32_t)c.vert[3 - c.corner - j];
         else {
           const PetscInt *o = kOther[c.corner][j]; // the two vertices other than a and j
-          const uint32_t  p = (uint32_t)c.rec->gid[o[0]], q = (uint32_t)c.rec->gid[o[1]];
+          const uint32_t  p = (uint32_t)c.vert[o[0]], q = (uint32_t)c.vert[o[1]];
           key               = p < q ? (uint64_t)p << 32 | q : (uint64_t)q << 32 | p;
         }
         size_t  h = (size_t)((key * 0x9E3779B97F4A7C15ull) >> 40) & (size - 1);
@@ -651,6 +653,23 @@ private:
   std::vector<PetscReal> L_, mu_, fixed_, rhs_, resid_, d_;
 };
 
+
+// F_T^2 = ||kappa^{-1/2}(kappa grad u_h - sigma)||_T^2 of every cell (see CellFlux), from the flux and the
+// cell records, before these go.
+void FluxTerms(const Space &space, const System &sys, const CellData &cd, Reconstruction &r)
+{
+  const PetscInt dim = space.dim, nb = space.Nb();
+  CellGeometry   g;
+  r.fluxTerm.resize(space.NumCells());
+  for (PetscInt c = 0; c < space.NumCells(); ++c) {
+    PrefetchVertices(space, c + kCellsAhead);
+    const Space::Coords X = space.X(c);
+    g.volume              = cd.cell[c].volume;
+    SimplexCentroid(dim, X, g.centroid);
+    r.fluxTerm[c] = CellFlux(dim, X, g, &r.flux[c * nb], sys.Kappa(c)).Term(dim, cd.cell[c].kg);
+  }
+}
+
 } // namespace
 
 PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const System &sys, Vec u, Reconstruction &r, bool generic)
@@ -674,7 +693,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, loc));
   PetscCall(VecGetArrayRead(loc, &ua));
   PetscCall(PetscLogEventBegin(cellEvent, 0, 0, 0, 0));
-  PetscCall(ComputeCellData(space, problem, sys, ua, gidx, cd, r.oscillation, r.cellGrad));
+  PetscCall(ComputeCellData(space, problem, sys, ua, cd, r.oscillation));
   PetscCall(PetscLogEventEnd(cellEvent, 0, 0, 0, 0));
   PetscCall(VecRestoreArrayRead(loc, &ua));
 
@@ -746,7 +765,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
     out.resize(n * nb);
     for (PetscInt e = 0; e < n; ++e) {
       cells[e] = CellOf(at[e], nb);
-      corners[e] = ViewOf(cd, cells[e], at[e] - cells[e] * nb);
+      corners[e] = ViewOf(cd, space, cells[e], at[e] - cells[e] * nb);
     }
     ok = patch.Solve(space.kindLocal[v], corners.data(), n, out.data(), generic);
     for (PetscInt e = 0; e < n && ok; ++e)
@@ -776,7 +795,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscInt nmulti = 0;
   for (PetscInt i = 0; i < space.numOwned; ++i) nmulti += degree[i];
   std::vector<Corner> leafCorners(leafAt.size()), rootCorners(nmulti);
-  for (size_t l = 0; l < leafAt.size(); ++l) FillCorner(cd, nb, leafAt[l] / nb, leafAt[l] % nb, leafCorners[l]);
+  for (size_t l = 0; l < leafAt.size(); ++l) FillCorner(cd, space, gidx, leafAt[l] / nb, leafAt[l] % nb, leafCorners[l]);
   PetscCall(ISLocalToGlobalMappingRestoreIndices(space.ltog, &gidx));
   MPI_Datatype cornerType, fluxType;
   PetscCallMPI(MPI_Type_contiguous((int)sizeof(Corner), MPI_BYTE, &cornerType));
@@ -800,6 +819,8 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscCallMPI(MPI_Type_free(&fluxType));
   PetscCall(PetscSFDestroy(&sf));
   PetscCall(CheckAll(comm, ok, "estimate: a vertex patch problem of the P1 flux reconstruction is singular"));
+  std::vector<PetscInt>().swap(list); // its memory for fluxTerm: the estimate's peak stays where it was
+  FluxTerms(space, sys, cd, r);
   PetscCall(PetscLogEventEnd(event, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }
