@@ -107,7 +107,6 @@ PetscReal ContactTerm(const Space &space, const Problem &problem, const System &
   return sum;
 }
 
-
 // The f part of the oscillation per cell, for a reconstruction that did not read it.
 PetscErrorCode CellOscillation(const Space &space, const Problem &problem, const System &sys, std::vector<PetscReal> &osc, std::string &error)
 {

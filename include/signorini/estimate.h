@@ -99,20 +99,6 @@ struct CellFlux {
   }
 };
 
-// The estimate's cell loops read each cell's vertex coordinates (and values) where the vertex numbering,
-// unlike the cells', is scattered over memory (a mesh refined in levels numbers them by other rules): they
-// ask for the vertices of the cell kCellsAhead ahead, whose reads then no longer wait for memory.
-constexpr PetscInt kCellsAhead = 16;
-inline void PrefetchVertices(const Space &space, PetscInt c, const PetscScalar *u = nullptr)
-{
-  if (c >= space.NumCells()) return;
-  for (PetscInt k = 0; k <= space.dim; ++k) {
-    const PetscInt v = space.cellVert[c * (space.dim + 1) + k];
-    __builtin_prefetch(&space.vertX[v * space.dim]);
-    if (u) __builtin_prefetch(&u[v]);
-  }
-}
-
 // Per element, from the solution u (global vector) of the assembled system.
 PetscErrorCode ReconstructCR(const Space &space, const Problem &problem, const System &sys, Vec u, Reconstruction &r);
 // generic: every vertex patch by the general solve (sparse elimination of the cell graph Laplacian), not the
