@@ -21,7 +21,7 @@
 // squared flux difference; phi_F the RT0 basis function of unit flux), which is equivalent to
 // ||kappa^{-1/2} .|| on shape-regular cells. Any feasible sigma_a gives a guaranteed bound; this choice
 // makes the patch problem a weighted graph Laplacian on the patch's cells (faces = edges), solved by a
-// Cholesky factorisation of the size of the cell count: in 3D (about 23 cells and 70 faces per patch)
+// sparse elimination of the size of the cell count: in 3D (about 23 cells and 70 faces per patch)
 // several times cheaper than the saddle point system of the full mass matrix, with the same efficiency
 // indices on the sine problems of tests/unit_equilibrate (equal to three digits).
 // The cell constraints of a patch without Dirichlet or contact faces sum to r_a = 0: the equations are
@@ -43,44 +43,65 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
-#include <unordered_map>
+#include <memory>
 
 namespace signorini {
 
 namespace {
 
-enum FaceKind : PetscInt { kFaceOther = 0, kFaceDirichlet = 1, kFaceNeumann = 2, kFaceContact = 3 };
+enum FaceKind : char { kFaceOther = 0, kFaceDirichlet = 1, kFaceNeumann = 2, kFaceContact = 3 };
 
-// One cell as seen from one of its vertices (the patch's centre): the unit of the gather.
-struct Corner {
-  PetscInt  gid[4];     // global vertex numbers of the cell's vertices
-  PetscInt  kind[4];    // FaceKind of the cell's face j (opposite vertex j)
-  PetscInt  corner;     // which vertex of the cell is the centre a
-  PetscInt  pad;        // the reals start 8-byte aligned either way; sent as bytes
-  PetscReal weight[4];  // int_T |phi_j|^2 / kappa_T, phi_j the RT0 function of unit flux on face j
-  PetscReal target[4];  // fluxes of the RT0 interpolant of G_T: G_T . n_j |F_j| / d (psi_a G: all but face `corner`)
-  PetscReal load;       // int_T f psi_a
-  PetscReal neumann[4]; // int_{F_j} g psi_a on Neumann faces, 0 elsewhere
-  PetscReal volume;
-};
-
-// Per local cell, what every corner record of the cell repeats, in one record a cell: a patch reads its
-// cells' records, and one record is one or two cache lines where separate arrays were six.
+// Per local cell, what the patches of its vertices read, in one record a cell (136 B): a patch
+// reads its cells' records where they are (the patch's corner of the cell beside them, CornerView), so
+// nothing is copied per corner. No initialisers: ComputeCellData writes every record once.
 struct CellRecord {
-  PetscInt  gid[4]    = {0, 0, 0, 0}; // as in Corner
-  PetscInt  kind[4]   = {kFaceOther, kFaceOther, kFaceOther, kFaceOther};
-  PetscReal weight[4] = {0, 0, 0, 0}, target[4] = {0, 0, 0, 0};
-  PetscReal load[4]   = {0, 0, 0, 0}; // int_T f psi_k
-  PetscReal volume    = 0;
+  char      kind[4];   // FaceKind of the cell's face j (opposite vertex j)
+  PetscInt  neumann;   // index into CellData::neumann, -1 for none
+  PetscReal weight[4]; // int_T |phi_j|^2 / kappa_T, phi_j the RT0 function of unit flux on face j
+  PetscReal target[4]; // fluxes of the RT0 interpolant of G_T: G_T . n_j |F_j| / d (psi_a G: all but face `corner`)
+  PetscReal load[4];   // int_T f psi_k
+  PetscReal volume;
+  PetscReal kg[3];     // kappa_T grad u_h: the estimate's cell terms once the flux is known
 };
 struct CellData {
-  std::vector<CellRecord> cell;
-  std::unordered_map<PetscInt, std::array<PetscReal, 4>> neumann; // cell*nb + j -> int_{F_j} g psi_k, k = 0..d
+  std::unique_ptr<CellRecord[]>          cell;    // default-initialised: a zeroing pass over ~130 B a cell saved
+  std::vector<std::array<PetscReal, 16>> neumann; // per cell with Neumann faces: [j * 4 + k] = int_{F_j} g psi_k
 };
+
+// One cell as seen from one of its vertices (the patch's centre), as gathered from another rank.
+struct Corner {
+  CellRecord cell;
+  PetscInt   gid[4];      // global vertex numbers of the cell's vertices
+  PetscInt   corner, pad; // which vertex of the cell is the centre a; the reals start 8-byte aligned either way
+  PetscReal  neumann[4];  // int_{F_j} g psi_a on Neumann faces, 0 elsewhere
+};
+
+// What a patch reads of one of its cells: the cell's record and its corner at the centre a.
+struct CornerView {
+  const CellRecord *rec;
+  const PetscInt   *vert; // the cell's vertices, by numbers unique within the patch (local or global)
+  const PetscReal  *nm;   // int_{F_j} g psi_a at nm[j * stride]
+  PetscInt          corner, stride;
+  PetscReal         Load() const { return rec->load[corner]; }
+  PetscReal         Neumann(PetscInt j) const { return nm[j * stride]; }
+};
+const PetscReal kNoNeumann[1] = {0};
+// A local patch matches faces by the local vertex numbers, a gathered one by the global ones.
+CornerView ViewOf(const CellData &cd, const Space &space, PetscInt c, PetscInt k)
+{
+  const CellRecord &rec  = cd.cell[c];
+  const PetscInt   *vert = &space.cellVert[c * space.Nb()];
+  if (rec.neumann < 0) return {&rec, vert, kNoNeumann, k, 0};
+  return {&rec, vert, &cd.neumann[rec.neumann][k], k, 4};
+}
+CornerView ViewOf(const Corner &g) { return {&g.cell, g.gid, g.neumann, g.corner, 1}; }
 
 // int_T |phi_j|^2 with phi_j = (x - X_j) / (d |T|), the diagonal of the RT0 mass matrix: exact, from
 // int_T lambda_i lambda_m = |T| (1 + delta_im) / ((d+1)(d+2)).
-void RT0MassDiagonal(PetscInt dim, const PetscReal *X, PetscReal volume, PetscReal *M)
+// (dim a template parameter: the cell loops run once a cell over millions of cells, and with the
+// dimension known the compiler unrolls their short loops and keeps the sums in registers.)
+template <PetscInt dim>
+void RT0MassDiagonal(const PetscReal *X, PetscReal volume, PetscReal *M)
 {
   const PetscInt  nb    = dim + 1;
   const PetscReal scale = 1.0 / (dim * dim * volume * (dim + 1) * (dim + 2));
@@ -99,44 +120,74 @@ void RT0MassDiagonal(PetscInt dim, const PetscReal *X, PetscReal volume, PetscRe
   }
 }
 
+// The cell loops read each cell's vertex coordinates (and values) where the vertex numbering,
+// unlike the cells', is scattered over memory (a mesh refined in levels numbers them by other rules): they
+// ask for the vertices of the cell kCellsAhead ahead, whose reads then no longer wait for memory.
+constexpr PetscInt kCellsAhead = 16;
+inline void PrefetchVertices(const Space &space, PetscInt c, const PetscScalar *u = nullptr)
+{
+  if (c >= space.NumCells()) return;
+  for (PetscInt k = 0; k <= space.dim; ++k) {
+    const PetscInt v = space.cellVert[c * (space.dim + 1) + k];
+    __builtin_prefetch(&space.vertX[v * space.dim]);
+    if (u) __builtin_prefetch(&u[v]);
+  }
+}
+
+// The cell of a (cell, corner) index c * nb + corner: a shift or a division by the constant 3, where a
+// division by the variable nb cost tens of cycles, and the patches make one per corner.
+inline PetscInt CellOf(PetscInt i, PetscInt nb) { return nb == 4 ? i >> 2 : i / 3; }
+
 bool Contains(const std::vector<PetscInt> &parts, PetscInt p) { return std::find(parts.begin(), parts.end(), p) != parts.end(); }
 
 // The loads by the assembly's rules (AssembleCells, AssembleNeumann), per vertex of each cell, and the
 // cells' oscillations that come with them.
-PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, const PetscInt *gidx, CellData &cd, std::vector<PetscReal> &oscillation)
+// The record and the oscillation of cell c.
+template <PetscInt dim>
+void CellDataOf(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, PetscInt c, CellRecord &rec, PetscReal &oscillation, std::vector<PetscReal> &work, std::string &error)
+{
+  constexpr PetscInt  nb = dim + 1;
+  CellGeometry        g;
+  const Space::Coords X = space.X(c);
+  ComputeCellGeometry(dim, X, g);
+  for (PetscInt j = 0; j < 4; ++j) rec.kind[j] = kFaceOther, rec.weight[j] = rec.target[j] = rec.load[j] = 0;
+  rec.neumann         = -1;
+  rec.volume          = g.volume;
+  const PetscReal kap = sys.Kappa(c);
+  PetscReal G[3];
+  space.Grad(c, u, g, G);
+  RT0MassDiagonal<dim>(X, g.volume, rec.weight);
+  for (PetscInt j = 0; j < nb; ++j) rec.weight[j] /= kap;
+  for (PetscInt d = 0; d < 3; ++d) rec.kg[d] = d < dim ? kap * G[d] : 0;
+  for (PetscInt j = 0; j < nb; ++j) {
+    PetscReal dot = 0; // |F_j| n_j = -d |T| grad lambda_j
+    for (PetscInt d = 0; d < dim; ++d) dot += kap * G[d] * g.gradLambda[j][d];
+    rec.target[j] = -g.volume * dot;
+  }
+  CellLoad load;
+  GetCellLoad(space, problem, sys, c, X, g, work, load, error);
+  for (PetscInt k = 0; k < nb; ++k) rec.load[k] = load.moment[k];
+  oscillation = load.oscillation;
+}
+
+PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, CellData &cd, std::vector<PetscReal> &oscillation)
 {
   const PetscInt nb = space.Nb(), dim = space.dim, nc = space.NumCells();
   std::string    error;
   PetscReal      x[3], lambda[4];
   PetscFunctionBeginUser;
-  cd.cell.assign(nc, CellRecord());
+  cd.cell.reset(new CellRecord[nc]);
+  cd.neumann.clear();
   oscillation.resize(nc);
   std::vector<PetscReal> work;
   for (PetscInt c = 0; c < nc; ++c) {
-    CellGeometry        g;
-    const Space::Coords X = space.X(c);
-    ComputeCellGeometry(dim, X, g);
-    CellRecord &rec     = cd.cell[c];
-    rec.volume          = g.volume;
-    const PetscReal kap = sys.Kappa(c);
-    for (PetscInt j = 0; j < nb; ++j) rec.gid[j] = gidx[space.cellVert[c * nb + j]];
-    PetscReal       G[3];
-    space.Grad(c, u, g, G);
-    RT0MassDiagonal(dim, X, g.volume, rec.weight);
-    for (PetscInt j = 0; j < nb; ++j) rec.weight[j] /= kap;
-    for (PetscInt j = 0; j < nb; ++j) {
-      PetscReal dot = 0; // |F_j| n_j = -d |T| grad lambda_j
-      for (PetscInt d = 0; d < dim; ++d) dot += kap * G[d] * g.gradLambda[j][d];
-      rec.target[j] = -g.volume * dot;
-    }
-    CellLoad load;
-    GetCellLoad(space, problem, sys, c, X, g, work, load, error);
-    for (PetscInt k = 0; k < nb; ++k) rec.load[k] = load.moment[k];
-    oscillation[c] = load.oscillation;
+    PrefetchVertices(space, c + kCellsAhead, u);
+    if (dim == 2) CellDataOf<2>(space, problem, sys, u, c, cd.cell[c], oscillation[c], work, error);
+    else CellDataOf<3>(space, problem, sys, u, c, cd.cell[c], oscillation[c], work, error);
   }
   for (const BoundaryFace &bf : space.boundary) {
-    const PetscInt at = bf.cell * nb + bf.opposite;
-    PetscInt      &kind = cd.cell[bf.cell].kind[bf.opposite];
+    CellRecord &rec  = cd.cell[bf.cell];
+    char       &kind = rec.kind[bf.opposite];
     if (Contains(problem.dirichlet, bf.part)) kind = kFaceDirichlet;
     else if (Contains(problem.contact, bf.part)) kind = kFaceContact;
     else if (Contains(problem.neumann, bf.part)) {
@@ -151,28 +202,22 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
         const PetscReal gq = problem.g->Scalar(x, dim, error) * sys.faceRule.weights[q] * area;
         for (PetscInt k = 0; k < nb; ++k) share[k] += gq * lambda[k];
       }
-      cd.neumann[at] = share;
+      if (rec.neumann < 0) rec.neumann = (PetscInt)cd.neumann.size(), cd.neumann.push_back({});
+      for (PetscInt k = 0; k < nb; ++k) cd.neumann[rec.neumann][bf.opposite * 4 + k] = share[k];
     }
   }
   PetscCall(CheckAll(PetscObjectComm((PetscObject)space.dm), error.empty(), error));
   PetscFunctionReturn(0);
 }
 
-void FillCorner(const CellData &cd, PetscInt nb, PetscInt c, PetscInt k, Corner &r)
+void FillCorner(const CellData &cd, const Space &space, const PetscInt *gidx, PetscInt c, PetscInt k, Corner &r)
 {
-  const CellRecord &rec = cd.cell[c];
-  r.corner              = k;
-  for (PetscInt j = 0; j < 4; ++j) { // element by element: std::copy made a library call of 16 or 32 bytes
-    r.gid[j] = rec.gid[j], r.kind[j] = rec.kind[j];
-    r.weight[j] = rec.weight[j], r.target[j] = rec.target[j], r.neumann[j] = 0;
-  }
-  for (PetscInt j = 0; j < nb; ++j)
-    if (rec.kind[j] == kFaceNeumann) {
-      const auto it = cd.neumann.find(c * nb + j);
-      if (it != cd.neumann.end()) r.neumann[j] = it->second[k];
-    }
-  r.load   = rec.load[k];
-  r.volume = rec.volume;
+  const PetscInt   nb = space.Nb();
+  const CornerView v  = ViewOf(cd, space, c, k);
+  r.cell              = cd.cell[c];
+  r.corner            = k;
+  r.pad               = 0;
+  for (PetscInt j = 0; j < 4; ++j) r.gid[j] = j < nb ? gidx[v.vert[j]] : 0, r.neumann[j] = j < nb ? v.Neumann(j) : 0.0;
 }
 
 // Solves L z = b in place (z in b) for L symmetric positive definite, row-major N x N, by Cholesky's
@@ -213,6 +258,58 @@ bool SolveSPD(PetscInt N, PetscReal *L, PetscReal *b, PetscInt *start, PetscInt 
   return true;
 }
 
+// Solves L z = b in place (z in b) for L symmetric positive definite and N <= 64, row-major N x N, by
+// symmetric Gaussian elimination (L = U^T D U) in a minimum degree order: adj[i] has bit j set where
+// L_ij != 0 (i != j). The patch matrices are graph Laplacians of the patch's cells (degree <= 4), whose
+// factor in the cells' given order fills in; eliminating a cell with the fewest remaining neighbours first
+// keeps each step's neighbour set (its fill) small: on paper-5.1-3d 66 multipliers and 234 updates per
+// patch of 22 rows. The elimination graph lives in bit masks and the cells in buckets by their degree,
+// so choosing the order costs a few bit operations a step. Returns false if a pivot is not positive. L is
+// overwritten (the multipliers in the eliminated columns), adj too (adj[p]: the set p was eliminated with);
+// order, deg and d are work arrays of N entries.
+#if defined(__x86_64__) && defined(__GNUC__)
+__attribute__((target("popcnt"))) // every x86-64 processor of the last 15 years has the instruction
+#endif
+bool SolveSPDMinDegree(PetscInt N, PetscReal *L, PetscReal *b, uint64_t *adj, PetscInt *order, PetscInt *deg, PetscReal *dinv)
+{
+  // bucket[k]: the cells not yet eliminated with k neighbours left; the lowest such cell of the lowest
+  // non-empty bucket is the next pivot.
+  uint64_t bucket[65] = {0};
+  for (PetscInt i = 0; i < N; ++i) deg[i] = __builtin_popcountll(adj[i]), bucket[deg[i]] |= 1ull << i;
+  for (PetscInt t = 0; t < N; ++t) {
+    PetscInt k = 0;
+    while (!bucket[k]) ++k;
+    const PetscInt  p = __builtin_ctzll(bucket[k]);
+    const uint64_t  S = adj[p], bp = 1ull << p;
+    const PetscReal dp = L[p * N + p], *Lp = &L[p * N];
+    if (!(dp > 0)) return false;
+    const PetscReal inv = 1 / dp;
+    dinv[p] = inv, order[t] = p, bucket[k] &= ~bp;
+    PetscInt  idx[64], ns = 0; // S as a list, and row p on it
+    PetscReal lp[64];
+    for (uint64_t m = S; m; m &= m - 1) idx[ns] = __builtin_ctzll(m), lp[ns] = Lp[idx[ns]], ++ns;
+    for (PetscInt a = 0; a < ns; ++a) {
+      const PetscInt  i  = idx[a];
+      PetscReal      *Li = &L[i * N];
+      const PetscReal l  = Li[p] * inv;
+      Li[p]              = l; // the multiplier, where L's entry is read no more
+      for (PetscInt c = 0; c < ns; ++c) Li[idx[c]] -= l * lp[c];
+      b[i] -= l * b[p];
+      bucket[deg[i]] &= ~(1ull << i);
+      adj[i] = (adj[i] | S) & ~(1ull << i) & ~bp;
+      deg[i] = __builtin_popcountll(adj[i]);
+      bucket[deg[i]] |= 1ull << i;
+    }
+  }
+  for (PetscInt t = N - 1; t >= 0; --t) { // U z = D^{-1} y: z_p from the z_i of the later pivots i in its set
+    const PetscInt p = order[t];
+    PetscReal      z = b[p] * dinv[p];
+    for (uint64_t m = adj[p]; m; m &= m - 1) z -= L[__builtin_ctzll(m) * N + p] * b[__builtin_ctzll(m)];
+    b[p] = z;
+  }
+  return true;
+}
+
 // The patch problem of one vertex. Unknowns: the fluxes of the faces containing a that are free (interior
 // to the patch: one unknown for the two sides; Dirichlet; contact not yet fixed at 0). Writes the fluxes
 // of every face of every patch cell (nb per corner record, outward, 0 on the face opposite a).
@@ -222,24 +319,21 @@ public:
 
   // The patch of a vertex of kind vertexKind whose cells are the n corner records. Returns false for a
   // singular system. One object serves all patches, so its work arrays are allocated once.
-  bool Solve(char vertexKind, const Corner *corners, PetscInt n, PetscReal *flux, bool generic = false)
+  bool Solve(char vertexKind, const CornerView *corners, PetscInt n, PetscReal *flux, bool generic = false)
   {
     vertexKind_ = vertexKind;
     corners_    = corners;
     n_          = n;
     if (nb_ == 3 && !generic && Chain()) return SolveChain(flux);
     MatchFaces();
+    d_.resize(n);
     for (;;) {
+      Unknowns();
       if (!SolveOnce(flux)) return false;
       bool changed = false; // contact fluxes must be >= 0: fix the negative ones at 0 and solve again
-      for (size_t u = 0; u < x_.size(); ++u)
-        if (contact_[u] && x_[u] < 0) {
-          for (const Side &s : sides_)
-            if (s.unknown == (PetscInt)u) fixedSides_.push_back({s.entry, s.face, 0.0});
-          changed = true;
-        }
+      for (const Unknown &u : unknowns_)
+        if (u.contact && u.x < 0) forced_[u.first] = 1, changed = true;
       if (!changed) return true;
-      Renumber();
     }
   }
 
@@ -254,9 +348,9 @@ private:
     // Per cell, its two faces containing a and their other vertices (face j = {a, gid[3 - corner - j]}).
     ends_.resize(n_);
     for (PetscInt e = 0; e < n_; ++e) {
-      const Corner  &c  = corners_[e];
+      const CornerView  &c  = corners_[e];
       const PetscInt j1 = c.corner == 0 ? 1 : 0, j2 = c.corner == 2 ? 1 : 2;
-      ends_[e]          = {{j1, j2}, {c.gid[3 - c.corner - j1], c.gid[3 - c.corner - j2]}, {-1, -1}, {-1, -1}};
+      ends_[e]          = {{j1, j2}, {c.vert[3 - c.corner - j1], c.vert[3 - c.corner - j2]}, {-1, -1}, {-1, -1}};
     }
     // The cell and side across each face (-1: none): a few comparisons of small integers per pair of cells.
     for (PetscInt e = 0; e < n_; ++e)
@@ -307,11 +401,11 @@ private:
       E.free = true, E.contact = false, E.value = 0;
       if (E.leftCell >= 0 && E.rightCell >= 0) continue;
       const Link    &L    = chain_[E.leftCell >= 0 ? E.leftCell : E.rightCell];
-      const Corner  &c    = corners_[L.entry];
-      const PetscInt face = E.leftCell >= 0 ? L.right : L.left, kind = c.kind[face];
+      const CornerView  &c    = corners_[L.entry];
+      const PetscInt face = E.leftCell >= 0 ? L.right : L.left, kind = c.rec->kind[face];
       E.contact = kind == kFaceContact;
       E.free    = kind == kFaceDirichlet || (kind == kFaceContact && vertexKind_ != kDirichlet);
-      if (!E.free) E.value = kind == kFaceNeumann ? c.neumann[face] : 0.0;
+      if (!E.free) E.value = kind == kFaceNeumann ? c.Neumann(face) : 0.0;
     }
     for (;;) {
       if (!SolveChainOnce()) return false;
@@ -344,17 +438,17 @@ private:
       const Link     &L    = chain_[cell];
       const PetscInt  face = rightFace ? L.right : L.left;
       const ChainEdge &E   = edges_[rightFace ? (cell + 1) % ne : cell];
-      return corners_[L.entry].target[face] - (E.free ? 0.0 : E.value);
+      return corners_[L.entry].rec->target[face] - (E.free ? 0.0 : E.value);
     };
     for (PetscInt i = 0; i < n; ++i) {
-      const Corner &c = corners_[chain_[i].entry];
-      rhs_[i]         = -c.load + resid(i, false) + resid(i, true);
-      volume += c.volume, mismatch += rhs_[i];
+      const CornerView &c = corners_[chain_[i].entry];
+      rhs_[i]         = -c.Load() + resid(i, false) + resid(i, true);
+      volume += c.rec->volume, mismatch += rhs_[i];
     }
     // Without a free boundary face the constraints sum to r_a: make them compatible, drop the last cell's.
     const PetscInt rows = grounded ? n : n - 1;
     if (!grounded)
-      for (PetscInt i = 0; i < n; ++i) rhs_[i] -= mismatch * corners_[chain_[i].entry].volume / volume;
+      for (PetscInt i = 0; i < n; ++i) rhs_[i] -= mismatch * corners_[chain_[i].entry].rec->volume / volume;
     // Per free edge: h = the sum of its sides' weights, c = sum of sign * weight * resid (sign +1 on the
     // left cell's side, -1 on the right's when both exist).
     diag_.assign(rows, 0.0), off_.assign(rows, 0.0), mu_.resize(rows);
@@ -365,11 +459,11 @@ private:
       const bool both = E.leftCell >= 0 && E.rightCell >= 0;
       E.h = E.c = 0;
       if (E.leftCell >= 0) {
-        const PetscReal w = corners_[chain_[E.leftCell].entry].weight[chain_[E.leftCell].right];
+        const PetscReal w = corners_[chain_[E.leftCell].entry].rec->weight[chain_[E.leftCell].right];
         E.h += w, E.c += w * resid(E.leftCell, true);
       }
       if (E.rightCell >= 0) {
-        const PetscReal w = corners_[chain_[E.rightCell].entry].weight[chain_[E.rightCell].left];
+        const PetscReal w = corners_[chain_[E.rightCell].entry].rec->weight[chain_[E.rightCell].left];
         E.h += w, E.c += (both ? -w : w) * resid(E.rightCell, false);
       }
       const PetscReal inv = 1.0 / E.h;
@@ -410,171 +504,185 @@ private:
   bool                   cycle_ = false;
   std::vector<PetscReal> diag_, off_;
 
-  struct Side {
-    PetscInt  entry, face, unknown; // corner record, its face, the unknown (-1: fixed)
-    PetscReal sign;
-  };
-  struct Fixed {
-    PetscInt  entry, face;
-    PetscReal value;
-  };
-  // A face containing a is known by its other vertices (one in 2D, two in 3D): their global numbers,
-  // smaller first, packed in one integer.
-  struct Key {
-    uint64_t v;
-    PetscInt entry, face;
+  // Per face containing a, seen from one cell: slot e * nb + j is face j of corner record e.
+  // An unknown flux: of an interior face of the patch (two slots: outward from the first, inward to the
+  // second) or of a free boundary face (one slot). hinv: 1 / the sum of its slots' weights; c: the sum of
+  // sign * weight * (interpolant's flux - fixed flux); x: the flux, outward from the first slot's cell.
+  struct Unknown {
+    PetscInt  first, second; // slots; second -1 for a boundary face
+    PetscInt  e1, e2;        // their corner records (e2 -1 for a boundary face)
+    bool      contact;
+    PetscReal hinv, c, x;
   };
 
-  // The faces containing a, matched between the patch's cells by their vertices' global numbers.
+  // The faces containing a, matched between the patch's cells by their other vertices' global numbers
+  // (one in 2D, two in 3D, smaller first, packed in one integer) through a small open-addressing hash
+  // table (a sort costs more at 70 faces in 3D): partner_[slot] is the other cell's slot of the face, -1
+  // for a boundary face (and for the face opposite a).
   void MatchFaces()
   {
-    // Sized once and filled by index: the growing push_back was a call per face.
-    std::vector<Key> &keys = keys_;
-    keys.resize(n_ * (nb_ - 1));
-    size_t nk = 0;
+    const PetscInt nslots = n_ * nb_;
+    size_t         size   = std::max<size_t>(table_.size(), 16);
+    while (size < (size_t)(2 * nslots)) size *= 2;
+    if (size > table_.size() || stamp_ == INT32_MAX) table_.assign(size, Bucket{0, -1, 0}), stamp_ = 0;
+    ++stamp_; // the buckets of earlier patches (an older stamp) count as empty: no clearing per patch
+    partner_.resize(nslots);
+    forced_.assign(nslots, 0);
     for (PetscInt e = 0; e < n_; ++e) {
-      const Corner &c = corners_[e];
+      const CornerView &c = corners_[e];
       for (PetscInt j = 0; j < nb_; ++j) {
+        const PetscInt slot = e * nb_ + j;
+        partner_[slot]      = -1;
         if (j == c.corner) continue;
-        uint64_t lo = UINT32_MAX, hi = 0; // the vertices other than a and j
-        for (PetscInt i = 0; i < nb_; ++i)
-          if (i != j && i != c.corner) lo = std::min<uint64_t>(lo, (uint32_t)c.gid[i]), hi = std::max<uint64_t>(hi, (uint32_t)c.gid[i]);
-        keys[nk++] = {nb_ == 3 ? lo : (lo << 32 | hi), e, j};
+        uint64_t key;
+        if (nb_ == 3) key = (uint32_t)c.vert[3 - c.corner - j];
+        else {
+          const PetscInt *o = kOther[c.corner][j]; // the two vertices other than a and j
+          const uint32_t  p = (uint32_t)c.vert[o[0]], q = (uint32_t)c.vert[o[1]];
+          key               = p < q ? (uint64_t)p << 32 | q : (uint64_t)q << 32 | p;
+        }
+        size_t  h = (size_t)((key * 0x9E3779B97F4A7C15ull) >> 40) & (size - 1);
+        Bucket *b = &table_[h];
+        while (b->stamp == stamp_ && b->key != key) h = (h + 1) & (size - 1), b = &table_[h];
+        if (b->stamp != stamp_) *b = {key, slot, stamp_};
+        else partner_[b->slot] = slot, partner_[slot] = b->slot;
       }
     }
-    // Pair the keys through a small open-addressing hash table (a sort costs more at 70 keys in 3D).
-    const size_t n = keys.size();
-    size_t       size = 16;
-    while (size < 2 * n) size *= 2;
-    table_.assign(size, -1);
-    partner_.assign(n, -1);
-    for (size_t i = 0; i < n; ++i) {
-      size_t h = (size_t)((keys[i].v * 0x9E3779B97F4A7C15ull) >> 40) & (size - 1);
-      while (table_[h] >= 0 && keys[table_[h]].v != keys[i].v) h = (h + 1) & (size - 1);
-      if (table_[h] < 0) table_[h] = (PetscInt)i;
-      else partner_[table_[h]] = (PetscInt)i, partner_[i] = table_[h];
-    }
-    sides_.resize(n);
-    size_t ns = 0;
-    fixedSides_.clear();
-    for (size_t i = 0; i < n; ++i) {
-      const Key &k = keys[i];
-      if (partner_[i] >= 0) {
-        if (partner_[i] < (PetscInt)i) continue; // listed with its partner
-        const Key &o = keys[partner_[i]];
-        sides_[ns++] = {k.entry, k.face, -1, 1.0};
-        sides_[ns++] = {o.entry, o.face, -1, -1.0};
-        continue;
-      }
-      const Corner  &c    = corners_[k.entry];
-      const PetscInt kind = c.kind[k.face];
-      const bool     free = kind == kFaceDirichlet || (kind == kFaceContact && vertexKind_ != kDirichlet);
-      if (free) sides_[ns++] = {k.entry, k.face, -1, 1.0};
-      else fixedSides_.push_back({k.entry, k.face, kind == kFaceNeumann ? c.neumann[k.face] : 0.0});
-    }
-    sides_.resize(ns);
-    Renumber();
   }
+  // kOther[k][j]: the two cell vertices (of a tetrahedron) other than k and j.
+  static constexpr PetscInt kOther[4][4][2] = {
+    {{0, 0}, {2, 3}, {1, 3}, {1, 2}},
+    {{2, 3}, {0, 0}, {0, 3}, {0, 2}},
+    {{1, 3}, {0, 3}, {0, 0}, {0, 1}},
+    {{1, 2}, {0, 2}, {0, 1}, {0, 0}}
+  };
 
-  // Unknown numbers for the sides not fixed; a side fixed later leaves sides_ (its pair partner cannot be
-  // fixed: only contact faces are, and they have one side).
-  void Renumber()
+  // The unknowns, in the order of their first slot, and the fixed fluxes of the other slots (0 on the
+  // face opposite a and on slots of unknowns): Neumann faces their load, Dirichlet faces of a Dirichlet
+  // vertex... (see the top of the file), and contact faces forced to 0 by an earlier solve.
+  void Unknowns()
   {
-    if (!fixedSides_.empty()) {
-      size_t kept = 0;
-      for (const Side &s : sides_) {
-        bool fixed = false;
-        for (const Fixed &f : fixedSides_) fixed |= f.entry == s.entry && f.face == s.face;
-        if (!fixed) sides_[kept++] = s;
-      }
-      sides_.resize(kept);
-    }
-    PetscInt m = 0;
-    contact_.clear();
+    unknowns_.clear();
+    fixed_.assign(n_ * nb_, 0.0);
     boundaryUnknown_ = false;
-    for (size_t i = 0; i < sides_.size(); ++i) {
-      const bool second = i > 0 && sides_[i].sign < 0;
-      sides_[i].unknown = second ? sides_[i - 1].unknown : m++;
-      if (!second) {
-        const bool paired = i + 1 < sides_.size() && sides_[i + 1].sign < 0;
-        contact_.push_back(!paired && corners_[sides_[i].entry].kind[sides_[i].face] == kFaceContact);
-        boundaryUnknown_ |= !paired;
+    for (PetscInt e = 0; e < n_; ++e) {
+      const CornerView &c = corners_[e];
+      for (PetscInt j = 0; j < nb_; ++j) {
+        const PetscInt slot = e * nb_ + j, other = partner_[slot];
+        if (j == c.corner || (other >= 0 && other < slot)) continue; // the pair is listed at its first slot
+        if (other >= 0) {
+          unknowns_.push_back({slot, other, e, Entry(other), false, 0, 0, 0});
+          continue;
+        }
+        const PetscInt kind = c.rec->kind[j];
+        const bool     free = !forced_[slot] && (kind == kFaceDirichlet || (kind == kFaceContact && vertexKind_ != kDirichlet));
+        if (free) unknowns_.push_back({slot, -1, e, -1, kind == kFaceContact, 0, 0, 0}), boundaryUnknown_ = true;
+        else fixed_[slot] = kind == kFaceNeumann ? c.Neumann(j) : 0.0;
       }
     }
-    x_.assign(m, 0.0);
   }
 
   bool SolveOnce(PetscReal *flux)
   {
-    const PetscInt m = (PetscInt)x_.size();
-    // y_e = fluxes of entry e = S_e x + fixed_e; objective 1/2 sum_e sum_j W_ej (y_e[j] - t_e[j])^2 with t_e
-    // the interpolant's fluxes without the face opposite a; constraint sum_j y_e[j] = sum_j t_e[j] - load_e.
-    std::vector<PetscReal> &fixed = fixed_, &rhs = rhs_, &resid = resid_; // resid: t_e - fixed_e
-    fixed.assign(n_ * nb_, 0.0);
-    rhs.assign(n_, 0.0);
-    resid.resize(n_ * nb_);
-    for (const Fixed &f : fixedSides_) fixed[f.entry * nb_ + f.face] = f.value;
+    // y_e = fluxes of entry e; objective 1/2 sum_e sum_j W_ej (y_e[j] - t_e[j])^2 with t_e the
+    // interpolant's fluxes without the face opposite a; constraint sum_j y_e[j] = sum_j t_e[j] - load_e.
+    resid_.resize(n_ * nb_); // t - fixed
+    rhs_.resize(n_);
     PetscReal volume = 0, mismatch = 0;
     for (PetscInt e = 0; e < n_; ++e) {
-      const Corner &c = corners_[e];
-      rhs[e]          = -c.load;
-      for (PetscInt j = 0; j < nb_; ++j) {
-        const PetscReal t = j == c.corner ? 0.0 : c.target[j];
-        resid[e * nb_ + j] = t - fixed[e * nb_ + j];
-        rhs[e] += resid[e * nb_ + j];
-      }
-      volume += c.volume;
-      mismatch += rhs[e];
+      const CornerView &c = corners_[e];
+      rhs_[e]         = -c.Load();
+      PetscReal *r = &resid_[e * nb_];
+      for (PetscInt j = 0; j < nb_; ++j) r[j] = c.rec->target[j] - fixed_[e * nb_ + j];
+      r[c.corner] = 0; // the face opposite a: no target, flux 0
+      for (PetscInt j = 0; j < nb_; ++j) rhs_[e] += r[j];
+      volume += c.rec->volume;
+      mismatch += rhs_[e];
     }
-    // Without a free boundary face the constraints sum to r_a: make them compatible, drop one.
+    // Without a free boundary face the constraints sum to r_a: make them compatible, drop the last one.
     const PetscInt rows = boundaryUnknown_ ? n_ : n_ - 1;
-    if (!boundaryUnknown_)
-      for (PetscInt e = 0; e < n_; ++e) rhs[e] -= mismatch * corners_[e].volume / volume;
-    // Minimise 1/2 x^T H x - c^T x subject to B x = rhs (B: +-1 per side, in the row of its entry), H the
+    if (!boundaryUnknown_) {
+      const PetscReal share = mismatch / volume;
+      for (PetscInt e = 0; e < n_; ++e) rhs_[e] -= share * corners_[e].rec->volume;
+    }
+    // Minimise 1/2 x^T H x - c^T x subject to B x = rhs (B: +-1 per slot, in the row of its entry), H the
     // diagonal weights: x = H^{-1} (c - B^T mu) with (B H^{-1} B^T) mu = B H^{-1} c - rhs, a graph
     // Laplacian on the cells (grounded by the free boundary faces, or by the dropped row).
-    h_.assign(m, 0.0);
-    c_.assign(m, 0.0);
-    for (const Side &s : sides_) {
-      const PetscReal w = corners_[s.entry].weight[s.face];
-      h_[s.unknown] += w;
-      c_[s.unknown] += s.sign * w * resid[s.entry * nb_ + s.face];
-    }
     L_.assign(rows * rows, 0.0);
     mu_.resize(rows);
-    for (PetscInt e = 0; e < rows; ++e) mu_[e] = -rhs[e];
-    for (size_t i = 0; i < sides_.size(); ++i) {
-      const Side &s = sides_[i];
-      if (s.entry >= rows) continue;
-      mu_[s.entry] += s.sign * c_[s.unknown] / h_[s.unknown];
-      // the sides of one unknown are adjacent in sides_ (a pair: +1, then -1)
-      for (size_t k = i > 0 ? i - 1 : 0; k < std::min(i + 2, sides_.size()); ++k)
-        if (sides_[k].unknown == s.unknown && sides_[k].entry < rows) L_[s.entry * rows + sides_[k].entry] += s.sign * sides_[k].sign / h_[s.unknown];
+    adj_.assign(rows, 0);
+    for (PetscInt e = 0; e < rows; ++e) mu_[e] = -rhs_[e];
+    for (Unknown &u : unknowns_) {
+      const PetscInt  e1 = u.e1, e2 = u.e2;
+      const PetscReal w1 = corners_[e1].rec->weight[u.first - e1 * nb_];
+      PetscReal       h  = w1;
+      u.c                = w1 * resid_[u.first];
+      if (u.second >= 0) {
+        const PetscReal w2 = corners_[e2].rec->weight[u.second - e2 * nb_];
+        h += w2, u.c -= w2 * resid_[u.second];
+      }
+      const PetscReal inv = 1 / h, q = u.c * inv;
+      u.hinv              = inv;
+      if (e1 < rows) L_[e1 * rows + e1] += inv, mu_[e1] += q;
+      if (u.second < 0 || e2 >= rows) continue;
+      L_[e2 * rows + e2] += inv, mu_[e2] -= q;
+      if (e1 >= rows) continue;
+      L_[e1 * rows + e2] -= inv, L_[e2 * rows + e1] -= inv;
+      if (rows <= 64) adj_[e1] |= 1ull << e2, adj_[e2] |= 1ull << e1;
     }
     start_.resize(rows + 1);
     nz_.resize(rows * (rows - 1) / 2 + 1);
-    if (!SolveSPD(rows, L_.data(), mu_.data(), start_.data(), nz_.data())) return false;
-    for (PetscInt u = 0; u < m; ++u) x_[u] = c_[u];
-    for (const Side &s : sides_)
-      if (s.entry < rows) x_[s.unknown] -= s.sign * mu_[s.entry];
-    for (PetscInt u = 0; u < m; ++u) x_[u] /= h_[u];
-    for (PetscInt i = 0; i < n_ * nb_; ++i) flux[i] = fixed[i];
-    for (const Side &s : sides_) flux[s.entry * nb_ + s.face] = s.sign * x_[s.unknown];
+    if (rows <= 64) {
+      if (!SolveSPDMinDegree(rows, L_.data(), mu_.data(), adj_.data(), start_.data(), nz_.data(), d_.data())) return false;
+    } else if (!SolveSPD(rows, L_.data(), mu_.data(), start_.data(), nz_.data())) return false;
+    for (PetscInt i = 0; i < n_ * nb_; ++i) flux[i] = fixed_[i];
+    for (Unknown &u : unknowns_) {
+      const PetscInt e1 = u.e1, e2 = u.e2;
+      u.x                = u.c;
+      if (e1 < rows) u.x -= mu_[e1];
+      if (u.second >= 0 && e2 < rows) u.x -= -mu_[e2];
+      u.x *= u.hinv;
+      flux[u.first] = u.x;
+      if (u.second >= 0) flux[u.second] = -u.x;
+    }
     return true;
   }
+  PetscInt Entry(PetscInt slot) const { return CellOf(slot, nb_); } // the slot's corner record
 
   PetscInt               nb_;
   char                   vertexKind_ = kFree;
-  const Corner          *corners_ = nullptr;
+  const CornerView      *corners_ = nullptr;
   PetscInt               n_       = 0;
-  std::vector<Side>      sides_;
-  std::vector<Fixed>     fixedSides_;
-  std::vector<char>      contact_;
+  std::vector<Unknown>   unknowns_;
   bool                   boundaryUnknown_ = false;
-  std::vector<Key>       keys_;
-  std::vector<PetscInt>  table_, partner_, start_, nz_;
-  std::vector<PetscReal> x_, h_, c_, L_, mu_, fixed_, rhs_, resid_;
+  struct Bucket {
+    uint64_t key;
+    PetscInt slot, stamp;
+  };
+  std::vector<Bucket>    table_;
+  PetscInt               stamp_ = 0;
+  std::vector<uint64_t>  adj_;
+  std::vector<char>      forced_;
+  std::vector<PetscInt>  partner_, start_, nz_;
+  std::vector<PetscReal> L_, mu_, fixed_, rhs_, resid_, d_;
 };
+
+
+// F_T^2 = ||kappa^{-1/2}(kappa grad u_h - sigma)||_T^2 of every cell (see CellFlux), from the flux and the
+// cell records, before these go.
+void FluxTerms(const Space &space, const System &sys, const CellData &cd, Reconstruction &r)
+{
+  const PetscInt dim = space.dim, nb = space.Nb();
+  CellGeometry   g;
+  r.fluxTerm.resize(space.NumCells());
+  for (PetscInt c = 0; c < space.NumCells(); ++c) {
+    PrefetchVertices(space, c + kCellsAhead);
+    const Space::Coords X = space.X(c);
+    g.volume              = cd.cell[c].volume;
+    SimplexCentroid(dim, X, g.centroid);
+    r.fluxTerm[c] = CellFlux(dim, X, g, &r.flux[c * nb], sys.Kappa(c)).Term(dim, cd.cell[c].kg);
+  }
+}
 
 } // namespace
 
@@ -599,24 +707,33 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, loc));
   PetscCall(VecGetArrayRead(loc, &ua));
   PetscCall(PetscLogEventBegin(cellEvent, 0, 0, 0, 0));
-  PetscCall(ComputeCellData(space, problem, sys, ua, gidx, cd, r.oscillation));
+  PetscCall(ComputeCellData(space, problem, sys, ua, cd, r.oscillation));
   PetscCall(PetscLogEventEnd(cellEvent, 0, 0, 0, 0));
   PetscCall(VecRestoreArrayRead(loc, &ua));
 
-  // Local cells per vertex (CSR), and which vertices have cells on other ranks too (their count summed
-  // over ranks is larger).
-  std::vector<PetscInt> start(nv + 1, 0), list(nc * nb);
-  for (PetscInt i = 0; i < nc * nb; ++i) ++start[space.cellVert[i] + 1];
-  for (PetscInt v = 0; v < nv; ++v) start[v + 1] += start[v];
+  // The vertices in the order in which the cells first reach them (pos: a vertex's place in it), which is
+  // the order of the patches below: the cells of consecutive patches then lie close in memory, where the
+  // vertex order may scatter them (a mesh refined in levels numbers cells and vertices by different
+  // rules), which made the patches' reads of the cell data and writes of the fluxes wait for memory. The
+  // local cells of each vertex (CSR, by that order: the patches read it front to back), and which vertices
+  // have cells on other ranks too (their count summed over ranks is larger).
+  std::vector<PetscInt> order, pos(nv, -1), start(nv + 1, 0), list(nc * nb);
+  order.reserve(nv);
+  for (PetscInt i = 0; i < nc * nb; ++i)
+    if (pos[space.cellVert[i]] < 0) pos[space.cellVert[i]] = (PetscInt)order.size(), order.push_back(space.cellVert[i]);
+  for (PetscInt v = 0; v < nv; ++v)
+    if (pos[v] < 0) pos[v] = (PetscInt)order.size(), order.push_back(v); // in no local cell (none expected)
+  for (PetscInt i = 0; i < nc * nb; ++i) ++start[pos[space.cellVert[i]] + 1];
+  for (PetscInt o = 0; o < nv; ++o) start[o + 1] += start[o];
   {
     std::vector<PetscInt> next(start.begin(), start.end() - 1);
-    for (PetscInt i = 0; i < nc * nb; ++i) list[next[space.cellVert[i]]++] = i; // i = c * nb + corner
+    for (PetscInt i = 0; i < nc * nb; ++i) list[next[pos[space.cellVert[i]]]++] = i; // i = c * nb + corner
   }
   Vec          total;
   PetscScalar *la;
   PetscCall(DMGetGlobalVector(space.dm, &total));
   PetscCall(VecGetArray(loc, &la));
-  for (PetscInt v = 0; v < nv; ++v) la[v] = start[v + 1] - start[v];
+  for (PetscInt v = 0; v < nv; ++v) la[v] = start[pos[v] + 1] - start[pos[v]];
   PetscCall(VecRestoreArray(loc, &la));
   PetscCall(VecSet(total, 0));
   PetscCall(DMLocalToGlobal(space.dm, loc, ADD_VALUES, total));
@@ -624,7 +741,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscCall(DMRestoreGlobalVector(space.dm, &total));
   std::vector<char> shared(nv);
   PetscCall(VecGetArrayRead(loc, &ua));
-  for (PetscInt v = 0; v < nv; ++v) shared[v] = PetscRealPart(ua[v]) > start[v + 1] - start[v] + 0.5;
+  for (PetscInt v = 0; v < nv; ++v) shared[v] = PetscRealPart(ua[v]) > start[pos[v] + 1] - start[pos[v]] + 0.5;
   PetscCall(VecRestoreArrayRead(loc, &ua));
   PetscCall(DMRestoreLocalVector(space.dm, &loc));
 
@@ -637,41 +754,32 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   r.flux.assign(nc * nb, 0.0);
   r.companion.clear();
   bool                   ok = true;
-  std::vector<Corner>    corners;
+  std::vector<CornerView> corners;
   std::vector<PetscInt>  cells;
   std::vector<PetscReal> out;
   Patch                  patch(space.dim);
-  // Patches on this rank alone, in the order in which the cells first reach their vertices: the cells of
-  // consecutive patches then lie close in memory, where the vertex order may scatter them (a mesh refined
-  // in levels numbers cells and vertices by different rules), which made the patches' reads of the cell
-  // data and writes of the fluxes wait for memory.
+  // Patches on this rank alone, in the order of `order`.
   PetscCall(PetscLogEventBegin(patchEvent, 0, 0, 0, 0));
-  std::vector<PetscInt> order;
-  {
-    std::vector<char> seen(nv, 0);
-    order.reserve(nv);
-    for (PetscInt i = 0; i < nc * nb; ++i)
-      if (!seen[space.cellVert[i]]) seen[space.cellVert[i]] = 1, order.push_back(space.cellVert[i]);
-  }
-  const size_t kAhead = 4;
-  for (size_t o = 0; o < order.size() && ok; ++o) {
+  const PetscInt kAhead = 4;
+  for (PetscInt o = 0; o < nv && ok; ++o) {
     const PetscInt v = order[o];
-    if (o + kAhead < order.size()) { // the cell records of a patch a few ahead: their reads missed the cache
-      const PetscInt w = order[o + kAhead];
+    if (o + kAhead < nv) { // the cell records of a patch a few ahead: their reads missed the cache
+      const PetscInt w = o + kAhead;
       for (PetscInt i = start[w]; i < start[w + 1]; ++i) {
-        const char *rec = (const char *)&cd.cell[list[i] / nb];
+        const PetscInt c   = CellOf(list[i], nb);
+        const char    *rec = (const char *)&cd.cell[c];
         for (size_t b = 0; b < sizeof(CellRecord); b += 64) __builtin_prefetch(rec + b);
-        __builtin_prefetch(&r.flux[(list[i] / nb) * nb], 1); // and the fluxes it adds to
+        __builtin_prefetch(&r.flux[c * nb], 1); // and the fluxes it adds to
       }
     }
-    if (shared[v]) continue;
-    const PetscInt n = start[v + 1] - start[v], *at = &list[start[v]]; // at[e] = c * nb + corner
+    const PetscInt n = start[o + 1] - start[o], *at = &list[start[o]]; // at[e] = c * nb + corner
+    if (shared[v] || n == 0) continue;
     corners.resize(n);
     cells.resize(n);
     out.resize(n * nb);
     for (PetscInt e = 0; e < n; ++e) {
-      cells[e] = at[e] / nb;
-      FillCorner(cd, nb, cells[e], at[e] - cells[e] * nb, corners[e]);
+      cells[e] = CellOf(at[e], nb);
+      corners[e] = ViewOf(cd, space, cells[e], at[e] - cells[e] * nb);
     }
     ok = patch.Solve(space.kindLocal[v], corners.data(), n, out.data(), generic);
     for (PetscInt e = 0; e < n && ok; ++e)
@@ -701,7 +809,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscInt nmulti = 0;
   for (PetscInt i = 0; i < space.numOwned; ++i) nmulti += degree[i];
   std::vector<Corner> leafCorners(leafAt.size()), rootCorners(nmulti);
-  for (size_t l = 0; l < leafAt.size(); ++l) FillCorner(cd, nb, leafAt[l] / nb, leafAt[l] % nb, leafCorners[l]);
+  for (size_t l = 0; l < leafAt.size(); ++l) FillCorner(cd, space, gidx, leafAt[l] / nb, leafAt[l] % nb, leafCorners[l]);
   PetscCall(ISLocalToGlobalMappingRestoreIndices(space.ltog, &gidx));
   MPI_Datatype cornerType, fluxType;
   PetscCallMPI(MPI_Type_contiguous((int)sizeof(Corner), MPI_BYTE, &cornerType));
@@ -711,8 +819,12 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscCall(PetscSFGatherBegin(sf, cornerType, leafCorners.data(), rootCorners.data()));
   PetscCall(PetscSFGatherEnd(sf, cornerType, leafCorners.data(), rootCorners.data()));
   std::vector<PetscReal> rootFlux(nmulti * nb, 0.0), leafFlux(leafAt.size() * nb, 0.0);
-  for (PetscInt i = 0, off = 0; i < space.numOwned && ok; off += degree[i++])
-    if (degree[i] > 0) ok = patch.Solve(rootKind[i], &rootCorners[off], degree[i], &rootFlux[off * nb], generic);
+  for (PetscInt i = 0, off = 0; i < space.numOwned && ok; off += degree[i++]) {
+    if (degree[i] == 0) continue;
+    corners.resize(degree[i]);
+    for (PetscInt e = 0; e < degree[i]; ++e) corners[e] = ViewOf(rootCorners[off + e]);
+    ok = patch.Solve(rootKind[i], corners.data(), degree[i], &rootFlux[off * nb], generic);
+  }
   PetscCall(PetscSFScatterBegin(sf, fluxType, rootFlux.data(), leafFlux.data()));
   PetscCall(PetscSFScatterEnd(sf, fluxType, rootFlux.data(), leafFlux.data()));
   for (size_t l = 0; l < leafAt.size(); ++l)
@@ -721,6 +833,8 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscCallMPI(MPI_Type_free(&fluxType));
   PetscCall(PetscSFDestroy(&sf));
   PetscCall(CheckAll(comm, ok, "estimate: a vertex patch problem of the P1 flux reconstruction is singular"));
+  std::vector<PetscInt>().swap(list); // its memory for fluxTerm: the estimate's peak stays where it was
+  FluxTerms(space, sys, cd, r);
   PetscCall(PetscLogEventEnd(event, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }

@@ -107,37 +107,6 @@ PetscReal ContactTerm(const Space &space, const Problem &problem, const System &
   return sum;
 }
 
-// sigma = sum_k Phi_k (x - X_k) / (d |T|) = s0 + c (x - x_T) with s0 = sigma(x_T), c = sum_k Phi_k / (d |T|)
-// (= -Pi_0 f / d), so for a constant w (kappa grad v, or kappa grad_h u_h)
-//   ||w - sigma||_T^2 = |T| |w - s0|^2 + c^2 int_T |x - x_T|^2,  int_T |x - x_T|^2 = |T| / ((d+1)(d+2)) sum_k |X_k - x_T|^2
-// exactly (the cross term vanishes: x - x_T has mean zero on T). The w-free parts are computed once a cell.
-struct CellFlux {
-  PetscReal s0[3] = {0, 0, 0}, spread = 0, volume, kappa; // spread = c^2 int_T |x - x_T|^2
-  CellFlux(PetscInt dim, const PetscReal *X, const CellGeometry &g, const PetscReal *phi, PetscReal kappa_) : volume(g.volume), kappa(kappa_)
-  {
-    PetscReal c = 0, m2 = 0;
-    for (PetscInt k = 0; k <= dim; ++k) {
-      c += phi[k];
-      for (PetscInt d = 0; d < dim; ++d) {
-        const PetscReal r = g.centroid[d] - X[k * dim + d];
-        s0[d] += phi[k] * r;
-        m2 += r * r;
-      }
-    }
-    const PetscReal scale = 1 / (dim * g.volume);
-    for (PetscInt d = 0; d < dim; ++d) s0[d] *= scale;
-    c *= scale;
-    spread = c * c * g.volume / ((dim + 1) * (dim + 2)) * m2;
-  }
-  // ||kappa^{-1/2}(w - sigma)||_T^2
-  PetscReal Term(PetscInt dim, const PetscReal *w) const
-  {
-    PetscReal d2 = 0;
-    for (PetscInt d = 0; d < dim; ++d) d2 += (w[d] - s0[d]) * (w[d] - s0[d]);
-    return (volume * d2 + spread) / kappa;
-  }
-};
-
 // The f part of the oscillation per cell, for a reconstruction that did not read it.
 PetscErrorCode CellOscillation(const Space &space, const Problem &problem, const System &sys, std::vector<PetscReal> &osc, std::string &error)
 {
@@ -158,12 +127,24 @@ PetscErrorCode CellOscillation(const Space &space, const Problem &problem, const
 // The sums over the cells that the bounds need.
 enum Sum { kF2, kN2, kOsc2, kGamma, kFOsc2, kFhOsc2, kFh2, kNumSums };
 
+// CellTerms for P1 (v = u_h) from the reconstruction's F_T^2: N_T = 0 and Fh_T = F_T (the same values, so
+// the same sums, as the general loop's).
+void CellTermsP1(const Space &space, const Reconstruction &r, std::vector<PetscReal> &cellEta2, PetscReal *sums)
+{
+  for (PetscInt c = 0; c < space.NumCells(); ++c) {
+    const PetscReal f2 = r.fluxTerm[c], o2 = r.oscillation[c] * r.oscillation[c], fo = std::sqrt(f2) + r.oscillation[c];
+    cellEta2[c] += f2 + o2;
+    sums[kF2] += f2, sums[kOsc2] += o2, sums[kFOsc2] += fo * fo, sums[kFhOsc2] += fo * fo, sums[kFh2] += f2;
+  }
+}
+
 // The cell terms F_T^2, N_T^2 and osc_T^2 into the indicators and the local sums: F^2, N^2, osc^2,
 // sum_T (F_T + osc_T)^2, sum_T (Fh_T + osc_T)^2 and Fh^2 with Fh_T = ||kappa^{-1/2}(kappa grad u_h - sigma)||_T.
 // With vertexSums (CR), also the per-vertex sums ImproveCompanion starts from.
 void CellTerms(const Space &space, const System &sys, const Reconstruction &r, const PetscScalar *a, std::vector<PetscReal> &cellEta2, PetscReal *sums, std::vector<PetscReal> *vertexSums)
 {
   const PetscInt dim = space.dim, nb = space.Nb();
+  if (!r.fluxTerm.empty()) return CellTermsP1(space, r, cellEta2, sums);
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
     const Space::Coords X = space.X(c);
     CellGeometry        g;

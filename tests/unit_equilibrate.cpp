@@ -12,7 +12,7 @@
 //     (all three by quadrature of degree 8 here), at three mesh sizes; the efficiency index is printed;
 //   - the same F on 2 ranks as for the same scene built and solved on one rank (PETSC_COMM_SELF);
 //   - the same flux from the 2D patch solve along the cells around each vertex (cycle or path, the
-//     default) as from the general sparse Cholesky solve of the same patch problems (to round-off).
+//     default) as from the general sparse elimination of the same patch problems (to round-off).
 #include "signorini/contact.h"
 #include "signorini/estimate.h"
 #include "signorini/mesh.h"
@@ -273,7 +273,7 @@ static PetscErrorCode CheckSameAsGeneric(unit::Checker &ck, const std::string &t
   PetscCall(ReconstructP1(s.space, s.problem, s.sys, s.u, generic, true));
   for (size_t i = 0; i < s.r.flux.size(); ++i) diff = std::max(diff, std::fabs(s.r.flux[i] - generic.flux[i])), size = std::max(size, std::fabs(generic.flux[i]));
   diff = Max(PETSC_COMM_WORLD, diff), size = Max(PETSC_COMM_WORLD, size);
-  ck.Check(generic.flux.size() == s.r.flux.size() && diff <= 1e-12 * size, tag + ": the patch fluxes of the default solve = those of the general sparse Cholesky", "max difference %.3g, max flux %.3g", (double)diff, (double)size);
+  ck.Check(generic.flux.size() == s.r.flux.size() && diff <= 1e-12 * size, tag + ": the patch fluxes of the default solve = those of the general sparse elimination", "max difference %.3g, max flux %.3g", (double)diff, (double)size);
   PetscFunctionReturn(0);
 }
 

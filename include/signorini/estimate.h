@@ -52,6 +52,9 @@ struct Reconstruction {
   // Per local cell, h_T / pi kappa_T^{-1/2} ||f - Pi_0 f||_T (see CellLoad in assembly.h), from the loads
   // that the flux needed; empty: the estimate gets them itself.
   std::vector<PetscReal> oscillation;
+  // P1: per local cell F_T^2 = ||kappa^{-1/2}(kappa grad u_h - sigma)||_T^2, computed with the flux from
+  // the cell data it had (no second geometry and gradient); empty: the estimate computes it.
+  std::vector<PetscReal> fluxTerm;
 };
 
 struct Estimate {
@@ -65,9 +68,40 @@ struct Estimate {
   double    seconds = 0;       // max over ranks
 };
 
+// sigma = sum_k Phi_k (x - X_k) / (d |T|) = s0 + c (x - x_T) with s0 = sigma(x_T), c = sum_k Phi_k / (d |T|)
+// (= -Pi_0 f / d), so for a constant w (kappa grad v, or kappa grad_h u_h)
+//   ||w - sigma||_T^2 = |T| |w - s0|^2 + c^2 int_T |x - x_T|^2,  int_T |x - x_T|^2 = |T| / ((d+1)(d+2)) sum_k |X_k - x_T|^2
+// exactly (the cross term vanishes: x - x_T has mean zero on T). The w-free parts are computed once a cell.
+struct CellFlux {
+  PetscReal s0[3] = {0, 0, 0}, spread = 0, volume, kappa; // spread = c^2 int_T |x - x_T|^2
+  CellFlux(PetscInt dim, const PetscReal *X, const CellGeometry &g, const PetscReal *phi, PetscReal kappa_) : volume(g.volume), kappa(kappa_)
+  {
+    PetscReal c = 0, m2 = 0;
+    for (PetscInt k = 0; k <= dim; ++k) {
+      c += phi[k];
+      for (PetscInt d = 0; d < dim; ++d) {
+        const PetscReal r = g.centroid[d] - X[k * dim + d];
+        s0[d] += phi[k] * r;
+        m2 += r * r;
+      }
+    }
+    const PetscReal scale = 1 / (dim * g.volume);
+    for (PetscInt d = 0; d < dim; ++d) s0[d] *= scale;
+    c *= scale;
+    spread = c * c * g.volume / ((dim + 1) * (dim + 2)) * m2;
+  }
+  // ||kappa^{-1/2}(w - sigma)||_T^2
+  PetscReal Term(PetscInt dim, const PetscReal *w) const
+  {
+    PetscReal d2 = 0;
+    for (PetscInt d = 0; d < dim; ++d) d2 += (w[d] - s0[d]) * (w[d] - s0[d]);
+    return (volume * d2 + spread) / kappa;
+  }
+};
+
 // Per element, from the solution u (global vector) of the assembled system.
 PetscErrorCode ReconstructCR(const Space &space, const Problem &problem, const System &sys, Vec u, Reconstruction &r);
-// generic: every vertex patch by the general solve (sparse Cholesky of the cell graph Laplacian), not the
+// generic: every vertex patch by the general solve (sparse elimination of the cell graph Laplacian), not the
 // 2D one along the cells' cycle or path around the vertex; the two agree to round-off (unit_equilibrate).
 PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const System &sys, Vec u, Reconstruction &r, bool generic = false);
 // CR: moves the companion towards the conforming function closest to u_h where the vertex average is far
