@@ -75,6 +75,7 @@ struct CellExtra {
 struct CellData {
   std::unique_ptr<CellRecord[]> cell; // default-initialised: a zeroing pass over ~130 B a cell saved
   std::vector<CellExtra>        extra;
+  bool                          anyCoupled = false; // on any rank: else no patch looks for coupled cells
 };
 // The place of entry (i, j), i != j, of a cell's mass matrix in CellExtra::mass: pairs (0,1) (0,2) (0,3)
 // (1,2) (1,3) (2,3) (a triangle uses the first, second and fourth).
@@ -256,6 +257,7 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
     if (dim == 2) CellDataOf<2>(space, problem, sys, u, c, cd.cell[c], cd.extra, oscillation[c], work, error);
     else CellDataOf<3>(space, problem, sys, u, c, cd.cell[c], cd.extra, oscillation[c], work, error);
   }
+  PetscInt coupled = (PetscInt)cd.extra.size(); // so far only the coupled cells have an entry
   for (const BoundaryFace &bf : space.boundary) {
     CellRecord &rec  = cd.cell[bf.cell];
     char       &kind = rec.kind[bf.opposite];
@@ -278,6 +280,8 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
     }
   }
   PetscCall(CheckAll(PetscObjectComm((PetscObject)space.dm), error.empty(), error));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &coupled, 1, MPIU_INT, MPI_SUM, PetscObjectComm((PetscObject)space.dm)));
+  cd.anyCoupled = coupled > 0;
   PetscFunctionReturn(0);
 }
 
@@ -397,7 +401,8 @@ bool SolveSPDMinDegree(PetscInt N, PetscReal *L, PetscReal *b, uint64_t *adj, Pe
 // of every face of every patch cell (nb per corner record, outward, 0 on the face opposite a).
 class Patch {
 public:
-  explicit Patch(PetscInt dim) : nb_(dim + 1) {}
+  // mayCouple: whether any cell is coupled (CellData::anyCoupled)
+  Patch(PetscInt dim, bool mayCouple) : mayCouple_(mayCouple), nb_(dim + 1) {}
 
   // The patch of a vertex of kind vertexKind whose cells are the n corner records. Returns false for a
   // singular system. One object serves all patches, so its work arrays are allocated once.
@@ -407,7 +412,7 @@ public:
     corners_    = corners;
     n_          = n;
     coupled_    = false;
-    for (PetscInt e = 0; e < n; ++e) coupled_ |= corners[e].mass != nullptr;
+    for (PetscInt e = 0; e < n && mayCouple_; ++e) coupled_ |= corners[e].mass != nullptr;
     if (nb_ == 3 && !generic && !coupled_ && Chain()) return SolveChain(flux);
     MatchFaces();
     d_.resize(n);
@@ -807,7 +812,7 @@ private:
     }
     return true;
   }
-  bool                   coupled_ = false;
+  bool                   mayCouple_, coupled_ = false;
   std::vector<PetscInt>  slotUnknown_;
   std::vector<PetscReal> K_, Z_, S_;
 
@@ -919,7 +924,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   std::vector<CornerView> corners;
   std::vector<PetscInt>  cells;
   std::vector<PetscReal> out;
-  Patch                  patch(space.dim);
+  Patch                  patch(space.dim, cd.anyCoupled);
   // Patches on this rank alone, in the order of `order`.
   PetscCall(PetscLogEventBegin(patchEvent, 0, 0, 0, 0));
   const PetscInt kAhead = 4;
