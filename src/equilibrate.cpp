@@ -184,6 +184,18 @@ bool Stretched(const PetscReal *M, PetscReal volume)
   return (dim == 2 ? t * t : t * t * t * volume) > kStretched;
 }
 
+// A stretched cell's entry in the side table, with its mass matrix off the diagonal (out of line: the cell
+// loop over shape-regular meshes stays as it was).
+template <PetscInt dim>
+__attribute__((noinline)) void CoupleCell(const PetscReal *X, PetscReal volume, PetscReal kappa, CellRecord &rec, std::vector<CellExtra> &extra)
+{
+  rec.extra = (PetscInt)extra.size();
+  extra.push_back({});
+  PetscReal *M = extra.back().mass;
+  RT0MassOffDiagonal<dim>(X, volume, M);
+  for (PetscInt p = 0; p < 6; ++p) M[p] /= kappa;
+}
+
 // The cell loops read each cell's vertex coordinates (and values) where the vertex numbering,
 // unlike the cells', is scattered over memory (a mesh refined in levels numbers them by other rules): they
 // ask for the vertices of the cell kCellsAhead ahead, whose reads then no longer wait for memory.
@@ -222,13 +234,7 @@ void CellDataOf(const Space &space, const Problem &problem, const System &sys, c
   space.Grad(c, u, g, G);
   RT0MassDiagonal<dim>(X, g.volume, rec.weight);
   rec.coupled = Stretched<dim>(rec.weight, g.volume);
-  if (rec.coupled) {
-    rec.extra = (PetscInt)extra.size();
-    extra.push_back({});
-    PetscReal *M = extra.back().mass;
-    RT0MassOffDiagonal<dim>(X, g.volume, M);
-    for (PetscInt p = 0; p < 6; ++p) M[p] /= kap;
-  }
+  if (rec.coupled) CoupleCell<dim>(X, g.volume, kap, rec, extra);
   for (PetscInt j = 0; j < nb; ++j) rec.weight[j] /= kap;
   for (PetscInt d = 0; d < 3; ++d) rec.kg[d] = d < dim ? kap * G[d] : 0;
   for (PetscInt j = 0; j < nb; ++j) {
