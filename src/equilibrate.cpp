@@ -23,7 +23,10 @@
 // makes the patch problem a weighted graph Laplacian on the patch's cells (faces = edges), solved by a
 // sparse elimination of the size of the cell count: in 3D (about 23 cells and 70 faces per patch)
 // several times cheaper than the saddle point system of the full mass matrix, with the same efficiency
-// indices on the sine problems of tests/unit_equilibrate (equal to three digits).
+// indices on the sine problems of tests/unit_equilibrate (equal to three digits). On stretched cells the
+// equivalence constant grows like the aspect ratio squared, and so did the index (86 on
+// stiff-stretched-3d): a patch with a stretched cell (Stretched, a cheap shape measure per cell) is
+// solved with the full mass matrices (SolveCoupled; index 1.61 there), the others as before.
 // The cell constraints of a patch without Dirichlet or contact faces sum to r_a = 0: the equations are
 // compatible exactly when u_h solves the discrete problem. A solver's residual r_a is spread over the
 // patch's cells in proportion to their volume, so the flux is equilibrated up to it. At a contact vertex
@@ -56,17 +59,31 @@ enum FaceKind : char { kFaceOther = 0, kFaceDirichlet = 1, kFaceNeumann = 2, kFa
 // nothing is copied per corner. No initialisers: ComputeCellData writes every record once.
 struct CellRecord {
   char      kind[4];   // FaceKind of the cell's face j (opposite vertex j)
-  PetscInt  neumann;   // index into CellData::neumann, -1 for none
+  char      coupled;   // whether the patches use the cell's full RT0 mass matrix (CellExtra::mass), see Stretched
+  PetscInt  extra;     // index into CellData::extra, -1 for none
   PetscReal weight[4]; // int_T |phi_j|^2 / kappa_T, phi_j the RT0 function of unit flux on face j
   PetscReal target[4]; // fluxes of the RT0 interpolant of G_T: G_T . n_j |F_j| / d (psi_a G: all but face `corner`)
   PetscReal load[4];   // int_T f psi_k
   PetscReal volume;
   PetscReal kg[3];     // kappa_T grad u_h: the estimate's cell terms once the flux is known
 };
-struct CellData {
-  std::unique_ptr<CellRecord[]>          cell;    // default-initialised: a zeroing pass over ~130 B a cell saved
-  std::vector<std::array<PetscReal, 16>> neumann; // per cell with Neumann faces: [j * 4 + k] = int_{F_j} g psi_k
+// What few cells need beyond their record: those with Neumann faces, and the coupled ones.
+struct CellExtra {
+  PetscReal neumann[16]; // [j * 4 + k] = int_{F_j} g psi_k (0 off Neumann faces)
+  PetscReal mass[6];     // coupled cells: the RT0 mass matrix's entries off the diagonal / kappa_T (MassPair)
 };
+struct CellData {
+  std::unique_ptr<CellRecord[]> cell; // default-initialised: a zeroing pass over ~130 B a cell saved
+  std::vector<CellExtra>        extra;
+  bool                          anyCoupled = false; // on any rank: else no patch looks for coupled cells
+};
+// The place of entry (i, j), i != j, of a cell's mass matrix in CellExtra::mass: pairs (0,1) (0,2) (0,3)
+// (1,2) (1,3) (2,3) (a triangle uses the first, second and fourth).
+inline PetscInt MassPair(PetscInt i, PetscInt j)
+{
+  static constexpr PetscInt kPair[4][4] = {{-1, 0, 1, 2}, {0, -1, 3, 4}, {1, 3, -1, 5}, {2, 4, 5, -1}};
+  return kPair[i][j];
+}
 
 // One cell as seen from one of its vertices (the patch's centre), as gathered from another rank.
 struct Corner {
@@ -74,6 +91,7 @@ struct Corner {
   PetscInt   gid[4];      // global vertex numbers of the cell's vertices
   PetscInt   corner, pad; // which vertex of the cell is the centre a; the reals start 8-byte aligned either way
   PetscReal  neumann[4];  // int_{F_j} g psi_a on Neumann faces, 0 elsewhere
+  PetscReal  mass[6];     // CellExtra::mass of a coupled cell
 };
 
 // What a patch reads of one of its cells: the cell's record and its corner at the centre a.
@@ -82,8 +100,11 @@ struct CornerView {
   const PetscInt   *vert; // the cell's vertices, by numbers unique within the patch (local or global)
   const PetscReal  *nm;   // int_{F_j} g psi_a at nm[j * stride]
   PetscInt          corner, stride;
+  const PetscReal  *mass; // CellExtra::mass of a coupled cell, null for the others
   PetscReal         Load() const { return rec->load[corner]; }
   PetscReal         Neumann(PetscInt j) const { return nm[j * stride]; }
+  // int_T phi_i . phi_j / kappa_T for faces i, j of the cell (for an uncoupled cell only i == j is asked)
+  PetscReal         Mass(PetscInt i, PetscInt j) const { return i == j ? rec->weight[i] : mass[MassPair(i, j)]; }
 };
 const PetscReal kNoNeumann[1] = {0};
 // A local patch matches faces by the local vertex numbers, a gathered one by the global ones.
@@ -91,10 +112,11 @@ CornerView ViewOf(const CellData &cd, const Space &space, PetscInt c, PetscInt k
 {
   const CellRecord &rec  = cd.cell[c];
   const PetscInt   *vert = &space.cellVert[c * space.Nb()];
-  if (rec.neumann < 0) return {&rec, vert, kNoNeumann, k, 0};
-  return {&rec, vert, &cd.neumann[rec.neumann][k], k, 4};
+  if (rec.extra < 0) return {&rec, vert, kNoNeumann, k, 0, nullptr};
+  const CellExtra &x = cd.extra[rec.extra];
+  return {&rec, vert, &x.neumann[k], k, 4, rec.coupled ? x.mass : nullptr};
 }
-CornerView ViewOf(const Corner &g) { return {&g.cell, g.gid, g.neumann, g.corner, 1}; }
+CornerView ViewOf(const Corner &g) { return {&g.cell, g.gid, g.neumann, g.corner, 1, g.cell.coupled ? g.mass : nullptr}; }
 
 // int_T |phi_j|^2 with phi_j = (x - X_j) / (d |T|), the diagonal of the RT0 mass matrix: exact, from
 // int_T lambda_i lambda_m = |T| (1 + delta_im) / ((d+1)(d+2)).
@@ -118,6 +140,60 @@ void RT0MassDiagonal(const PetscReal *X, PetscReal volume, PetscReal *M)
     }
     M[j] = s * scale;
   }
+}
+
+// The entries of the RT0 mass matrix off its diagonal (MassPair's places):
+//   int_T phi_i . phi_j = ((x_T - X_i) . (x_T - X_j) + sum_k |X_k - x_T|^2 / ((d+1)(d+2))) / (d^2 |T|)
+// (int_T (x - X_i) . (x - X_j) with x - X_i = (x - x_T) + (x_T - X_i), the cross terms of mean zero).
+template <PetscInt dim>
+void RT0MassOffDiagonal(const PetscReal *X, PetscReal volume, PetscReal *M)
+{
+  constexpr PetscInt nb = dim + 1;
+  PetscReal          r[nb][dim], m2 = 0;
+  for (PetscInt i = 0; i < nb; ++i)
+    for (PetscInt d = 0; d < dim; ++d) {
+      PetscReal xc = 0;
+      for (PetscInt k = 0; k < nb; ++k) xc += X[k * dim + d];
+      r[i][d] = xc / nb - X[i * dim + d];
+      m2 += r[i][d] * r[i][d];
+    }
+  const PetscReal scale = 1.0 / (dim * dim * volume);
+  for (PetscInt i = 0; i < nb; ++i)
+    for (PetscInt j = i + 1; j < nb; ++j) {
+      PetscReal dot = m2 / ((dim + 1) * (dim + 2));
+      for (PetscInt d = 0; d < dim; ++d) dot += r[i][d] * r[j][d];
+      M[MassPair(i, j)] = dot * scale;
+    }
+}
+
+// Whether the patches weigh a cell's fluxes by its full RT0 mass matrix rather than by its diagonal.
+// The diagonal is equivalent to the full matrix with constants that depend on the cell's shape only, and
+// m = (trace of the mass matrix)^d |T|^(d-2), scale-free, measures that shape for the price of a product
+// or two: 0.69 for a right isosceles triangle and 1.33 for the six tetrahedra of a cube (0.52 and 0.58
+// for the equilateral ones), growing like s^2 for cells stretched by s (0.46 s^2 for the tetrahedra of a
+// box of aspect ratio s, 0.42 s^2 for right triangles), where the smallest eigenvalue of the diagonally
+// scaled matrix falls like 1 / s^2 (1.2e-6 at s = 1000): the diagonal then puts a flux that crosses the
+// cell's large faces at up to s^2 times its cost, and the patch minimisers go around it (P1 index 86 on
+// stiff-stretched-3d, 1.4 with the full matrix).
+template <PetscInt dim>
+bool Stretched(const PetscReal *M, PetscReal volume)
+{
+  constexpr PetscReal kStretched = 25; // a box's tetrahedra of aspect ratio about 7, right triangles of 12
+  PetscReal t = 0;
+  for (PetscInt j = 0; j <= dim; ++j) t += M[j];
+  return (dim == 2 ? t * t : t * t * t * volume) > kStretched;
+}
+
+// A stretched cell's entry in the side table, with its mass matrix off the diagonal (out of line: the cell
+// loop over shape-regular meshes stays as it was).
+template <PetscInt dim>
+__attribute__((noinline)) void CoupleCell(const PetscReal *X, PetscReal volume, PetscReal kappa, CellRecord &rec, std::vector<CellExtra> &extra)
+{
+  rec.extra = (PetscInt)extra.size();
+  extra.push_back({});
+  PetscReal *M = extra.back().mass;
+  RT0MassOffDiagonal<dim>(X, volume, M);
+  for (PetscInt p = 0; p < 6; ++p) M[p] /= kappa;
 }
 
 // The cell loops read each cell's vertex coordinates (and values) where the vertex numbering,
@@ -144,19 +220,21 @@ bool Contains(const std::vector<PetscInt> &parts, PetscInt p) { return std::find
 // cells' oscillations that come with them.
 // The record and the oscillation of cell c.
 template <PetscInt dim>
-void CellDataOf(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, PetscInt c, CellRecord &rec, PetscReal &oscillation, std::vector<PetscReal> &work, std::string &error)
+void CellDataOf(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, PetscInt c, CellRecord &rec, std::vector<CellExtra> &extra, PetscReal &oscillation, std::vector<PetscReal> &work, std::string &error)
 {
   constexpr PetscInt  nb = dim + 1;
   CellGeometry        g;
   const Space::Coords X = space.X(c);
   ComputeCellGeometry(dim, X, g);
   for (PetscInt j = 0; j < 4; ++j) rec.kind[j] = kFaceOther, rec.weight[j] = rec.target[j] = rec.load[j] = 0;
-  rec.neumann         = -1;
+  rec.extra           = -1;
   rec.volume          = g.volume;
   const PetscReal kap = sys.Kappa(c);
   PetscReal G[3];
   space.Grad(c, u, g, G);
   RT0MassDiagonal<dim>(X, g.volume, rec.weight);
+  rec.coupled = Stretched<dim>(rec.weight, g.volume);
+  if (rec.coupled) CoupleCell<dim>(X, g.volume, kap, rec, extra);
   for (PetscInt j = 0; j < nb; ++j) rec.weight[j] /= kap;
   for (PetscInt d = 0; d < 3; ++d) rec.kg[d] = d < dim ? kap * G[d] : 0;
   for (PetscInt j = 0; j < nb; ++j) {
@@ -177,14 +255,15 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
   PetscReal      x[3], lambda[4];
   PetscFunctionBeginUser;
   cd.cell.reset(new CellRecord[nc]);
-  cd.neumann.clear();
+  cd.extra.clear();
   oscillation.resize(nc);
   std::vector<PetscReal> work;
   for (PetscInt c = 0; c < nc; ++c) {
     PrefetchVertices(space, c + kCellsAhead, u);
-    if (dim == 2) CellDataOf<2>(space, problem, sys, u, c, cd.cell[c], oscillation[c], work, error);
-    else CellDataOf<3>(space, problem, sys, u, c, cd.cell[c], oscillation[c], work, error);
+    if (dim == 2) CellDataOf<2>(space, problem, sys, u, c, cd.cell[c], cd.extra, oscillation[c], work, error);
+    else CellDataOf<3>(space, problem, sys, u, c, cd.cell[c], cd.extra, oscillation[c], work, error);
   }
+  PetscInt coupled = (PetscInt)cd.extra.size(); // so far only the coupled cells have an entry
   for (const BoundaryFace &bf : space.boundary) {
     CellRecord &rec  = cd.cell[bf.cell];
     char       &kind = rec.kind[bf.opposite];
@@ -202,11 +281,13 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
         const PetscReal gq = problem.g->Scalar(x, dim, error) * sys.faceRule.weights[q] * area;
         for (PetscInt k = 0; k < nb; ++k) share[k] += gq * lambda[k];
       }
-      if (rec.neumann < 0) rec.neumann = (PetscInt)cd.neumann.size(), cd.neumann.push_back({});
-      for (PetscInt k = 0; k < nb; ++k) cd.neumann[rec.neumann][bf.opposite * 4 + k] = share[k];
+      if (rec.extra < 0) rec.extra = (PetscInt)cd.extra.size(), cd.extra.push_back({});
+      for (PetscInt k = 0; k < nb; ++k) cd.extra[rec.extra].neumann[bf.opposite * 4 + k] = share[k];
     }
   }
   PetscCall(CheckAll(PetscObjectComm((PetscObject)space.dm), error.empty(), error));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &coupled, 1, MPIU_INT, MPI_SUM, PetscObjectComm((PetscObject)space.dm)));
+  cd.anyCoupled = coupled > 0;
   PetscFunctionReturn(0);
 }
 
@@ -218,6 +299,7 @@ void FillCorner(const CellData &cd, const Space &space, const PetscInt *gidx, Pe
   r.corner            = k;
   r.pad               = 0;
   for (PetscInt j = 0; j < 4; ++j) r.gid[j] = j < nb ? gidx[v.vert[j]] : 0, r.neumann[j] = j < nb ? v.Neumann(j) : 0.0;
+  for (PetscInt p = 0; p < 6; ++p) r.mass[p] = v.mass ? v.mass[p] : 0.0;
 }
 
 // Solves L z = b in place (z in b) for L symmetric positive definite, row-major N x N, by Cholesky's
@@ -226,8 +308,9 @@ void FillCorner(const CellData &cd, const Space &space, const PetscInt *gidx, Pe
 // the rows of each column's nonzeros below the diagonal are listed (column k: nz[start[k] .. start[k+1]),
 // ascending; start: N + 1 entries, nz: N (N - 1) / 2), and the factorisation and both triangular solves
 // touch only those. Every entry sees the dense algorithm's operations in its order, less the updates by
-// a zero (which change nothing), so the result is the dense one's.
-bool SolveSPD(PetscInt N, PetscReal *L, PetscReal *b, PetscInt *start, PetscInt *nz)
+// a zero (which change nothing), so the result is the dense one's. FactorSPD factorises, SolveFactored
+// solves with the factor (as many right-hand sides as wanted).
+bool FactorSPD(PetscInt N, PetscReal *L, PetscInt *start, PetscInt *nz)
 {
   start[0] = 0;
   for (PetscInt k = 0; k < N; ++k) {
@@ -246,6 +329,10 @@ bool SolveSPD(PetscInt N, PetscReal *L, PetscReal *b, PetscInt *start, PetscInt 
       for (PetscInt c = 0; c <= a; ++c) Li[col[c]] -= lik * L[col[c] * N + k];
     }
   }
+  return true;
+}
+void SolveFactored(PetscInt N, const PetscReal *L, PetscReal *b, const PetscInt *start, const PetscInt *nz)
+{
   for (PetscInt j = 0; j < N; ++j) { // L y = b, by columns
     b[j] /= L[j * N + j];
     if (b[j] == 0) continue;
@@ -255,6 +342,11 @@ bool SolveSPD(PetscInt N, PetscReal *L, PetscReal *b, PetscInt *start, PetscInt 
     for (PetscInt p = start[j + 1] - 1; p >= start[j]; --p) b[j] -= L[nz[p] * N + j] * b[nz[p]];
     b[j] /= L[j * N + j];
   }
+}
+bool SolveSPD(PetscInt N, PetscReal *L, PetscReal *b, PetscInt *start, PetscInt *nz)
+{
+  if (!FactorSPD(N, L, start, nz)) return false;
+  SolveFactored(N, L, b, start, nz);
   return true;
 }
 
@@ -315,7 +407,8 @@ bool SolveSPDMinDegree(PetscInt N, PetscReal *L, PetscReal *b, uint64_t *adj, Pe
 // of every face of every patch cell (nb per corner record, outward, 0 on the face opposite a).
 class Patch {
 public:
-  explicit Patch(PetscInt dim) : nb_(dim + 1) {}
+  // mayCouple: whether any cell is coupled (CellData::anyCoupled)
+  Patch(PetscInt dim, bool mayCouple) : mayCouple_(mayCouple), nb_(dim + 1) {}
 
   // The patch of a vertex of kind vertexKind whose cells are the n corner records. Returns false for a
   // singular system. One object serves all patches, so its work arrays are allocated once.
@@ -324,12 +417,14 @@ public:
     vertexKind_ = vertexKind;
     corners_    = corners;
     n_          = n;
-    if (nb_ == 3 && !generic && Chain()) return SolveChain(flux);
+    coupled_    = false;
+    for (PetscInt e = 0; e < n && mayCouple_; ++e) coupled_ |= corners[e].mass != nullptr;
+    if (nb_ == 3 && !generic && !coupled_ && Chain()) return SolveChain(flux);
     MatchFaces();
     d_.resize(n);
     for (;;) {
       Unknowns();
-      if (!SolveOnce(flux)) return false;
+      if (!(coupled_ ? SolveCoupled(flux) : SolveOnce(flux))) return false;
       bool changed = false; // contact fluxes must be >= 0: fix the negative ones at 0 and solve again
       for (const Unknown &u : unknowns_)
         if (u.contact && u.x < 0) forced_[u.first] = 1, changed = true;
@@ -582,11 +677,13 @@ private:
     }
   }
 
-  bool SolveOnce(PetscReal *flux)
+  // y_e = fluxes of entry e; objective 1/2 sum_e (y_e - t_e)^T W_e (y_e - t_e) with t_e the interpolant's
+  // fluxes without the face opposite a (W_e the cell's mass matrix over kappa, or its diagonal); constraint
+  // sum_j y_e[j] = sum_j t_e[j] - load_e. Fills resid_ = t - fixed and rhs_, and returns the number of
+  // constraints kept.
+  PetscInt Constraints()
   {
-    // y_e = fluxes of entry e; objective 1/2 sum_e sum_j W_ej (y_e[j] - t_e[j])^2 with t_e the
-    // interpolant's fluxes without the face opposite a; constraint sum_j y_e[j] = sum_j t_e[j] - load_e.
-    resid_.resize(n_ * nb_); // t - fixed
+    resid_.resize(n_ * nb_);
     rhs_.resize(n_);
     PetscReal volume = 0, mismatch = 0;
     for (PetscInt e = 0; e < n_; ++e) {
@@ -605,6 +702,12 @@ private:
       const PetscReal share = mismatch / volume;
       for (PetscInt e = 0; e < n_; ++e) rhs_[e] -= share * corners_[e].rec->volume;
     }
+    return rows;
+  }
+
+  bool SolveOnce(PetscReal *flux)
+  {
+    const PetscInt rows = Constraints();
     // Minimise 1/2 x^T H x - c^T x subject to B x = rhs (B: +-1 per slot, in the row of its entry), H the
     // diagonal weights: x = H^{-1} (c - B^T mu) with (B H^{-1} B^T) mu = B H^{-1} c - rhs, a graph
     // Laplacian on the cells (grounded by the free boundary faces, or by the dropped row).
@@ -648,6 +751,76 @@ private:
     return true;
   }
   PetscInt Entry(PetscInt slot) const { return CellOf(slot, nb_); } // the slot's corner record
+
+  // SolveOnce's problem with the full mass matrices of the cells (some of them stretched): the Hessian K
+  // couples the unknowns of a cell's faces, so x = K^{-1} (c - B^T mu) with (B K^{-1} B^T) mu = B K^{-1} c
+  // - rhs by two Cholesky factorisations (K: the unknowns, about 40 in 3D; then the cells').
+  bool SolveCoupled(PetscReal *flux)
+  {
+    const PetscInt rows = Constraints(), nu = (PetscInt)unknowns_.size(), nr = rows + 1;
+    slotUnknown_.assign(n_ * nb_, -1); // 2 k for the first slot of unknown k, 2 k + 1 for its second
+    for (PetscInt k = 0; k < nu; ++k) {
+      slotUnknown_[unknowns_[k].first] = 2 * k;
+      if (unknowns_[k].second >= 0) slotUnknown_[unknowns_[k].second] = 2 * k + 1;
+    }
+    K_.assign(nu * nu, 0.0);
+    Z_.assign(nu * nr, 0.0); // column-major: column 0 c, column 1 + i row i of B
+    for (PetscInt e = 0; e < n_; ++e) {
+      const CornerView &c = corners_[e];
+      const PetscReal  *r = &resid_[e * nb_];
+      for (PetscInt i = 0; i < nb_; ++i) {
+        const PetscInt ki = slotUnknown_[e * nb_ + i];
+        if (i == c.corner || ki < 0) continue;
+        const PetscReal si = ki & 1 ? -1.0 : 1.0;
+        for (PetscInt j = 0; j < nb_; ++j) {
+          if (j == c.corner) continue;
+          const PetscReal w  = c.Mass(i, j);
+          const PetscInt  kj = slotUnknown_[e * nb_ + j];
+          Z_[ki / 2] += si * w * r[j];
+          if (kj >= 0) K_[(kj / 2) * nu + ki / 2] += si * (kj & 1 ? -w : w);
+        }
+      }
+    }
+    for (PetscInt k = 0; k < nu; ++k) {
+      const Unknown &u = unknowns_[k];
+      if (u.e1 < rows) Z_[(1 + u.e1) * nu + k] += 1;
+      if (u.second >= 0 && u.e2 < rows) Z_[(1 + u.e2) * nu + k] -= 1;
+    }
+    start_.resize(std::max(nu, rows) + 1);
+    nz_.resize(std::max(nu, rows) * (std::max(nu, rows) - 1) / 2 + 1);
+    if (nu > 0) {
+      if (!FactorSPD(nu, K_.data(), start_.data(), nz_.data())) return false;
+      for (PetscInt r = 0; r < nr; ++r) SolveFactored(nu, K_.data(), &Z_[r * nu], start_.data(), nz_.data());
+    }
+    if (rows > 0) { // S mu = g with S = B Z_B, g = B Z_c - rhs
+      S_.assign(rows * rows, 0.0);
+      mu_.resize(rows);
+      for (PetscInt i = 0; i < rows; ++i) mu_[i] = -rhs_[i];
+      for (PetscInt k = 0; k < nu; ++k) {
+        const Unknown &u = unknowns_[k];
+        for (PetscInt side = 0; side < 2; ++side) {
+          const PetscInt e = side ? (u.second >= 0 ? u.e2 : rows) : u.e1;
+          if (e >= rows) continue;
+          const PetscReal b = side ? -1.0 : 1.0;
+          mu_[e] += b * Z_[k];
+          for (PetscInt j = 0; j < rows; ++j) S_[j * rows + e] += b * Z_[(1 + j) * nu + k];
+        }
+      }
+      if (!SolveSPD(rows, S_.data(), mu_.data(), start_.data(), nz_.data())) return false;
+    }
+    for (PetscInt i = 0; i < n_ * nb_; ++i) flux[i] = fixed_[i];
+    for (PetscInt k = 0; k < nu; ++k) {
+      Unknown &u = unknowns_[k];
+      u.x        = Z_[k];
+      for (PetscInt i = 0; i < rows; ++i) u.x -= Z_[(1 + i) * nu + k] * mu_[i];
+      flux[u.first] = u.x;
+      if (u.second >= 0) flux[u.second] = -u.x;
+    }
+    return true;
+  }
+  bool                   mayCouple_, coupled_ = false;
+  std::vector<PetscInt>  slotUnknown_;
+  std::vector<PetscReal> K_, Z_, S_;
 
   PetscInt               nb_;
   char                   vertexKind_ = kFree;
@@ -757,7 +930,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   std::vector<CornerView> corners;
   std::vector<PetscInt>  cells;
   std::vector<PetscReal> out;
-  Patch                  patch(space.dim);
+  Patch                  patch(space.dim, cd.anyCoupled);
   // Patches on this rank alone, in the order of `order`.
   PetscCall(PetscLogEventBegin(patchEvent, 0, 0, 0, 0));
   const PetscInt kAhead = 4;

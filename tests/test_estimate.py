@@ -7,7 +7,7 @@ vertex-average companion; P1: flux equilibrated on vertex patches, v = u_h):
 - a guaranteed upper bound, eta >= the true energy error, with efficiency index eta / error <= 3 on the
   manufactured scenes (comparison with the exact solution) at three (2D) and five (3D, from 3x3x3: the
   coarse meshes are where the CR bound is least sharp) mesh sizes, and across a kappa
-  jump of 1e6 (stiff-layers-across), and for CR on cells of aspect ratio 1000 (stiff-stretched-2d/3d, also
+  jump of 1e6 (stiff-layers-across), and on cells of aspect ratio 1000 (stiff-stretched-2d/3d, also
   on 2 ranks). Their u_D (2D top,
   3D top) and g are not affine on the boundary faces, so the theory guarantees the bound only up to that
   data approximation: the test checks it holds all the same;
@@ -67,17 +67,23 @@ for (name, extra), el in [(case, el) for case in sizes for el in ["cr", "p1"]]:
     c.check(eta / err <= 3 and abs(s["estimate"]["efficiency"] - eta / err) <= 1e-12 * eta / err,
             "%s %s: efficiency index %.3f <= 3" % (name, " ".join(extra), eta / err))
 
-# 2b. Cells of aspect ratio 1000 (CR): the companion is moved by conjugate gradients towards the conforming
-# function closest to u_h (the vertex average alone put eta at 25 and 80 times the error). The same on 2 ranks
+# 2b. Cells of aspect ratio 1000. CR: the companion is moved by conjugate gradients towards the conforming
+# function closest to u_h (the vertex average alone put eta at 25 and 80 times the error); the same on 2 ranks
 # up to what the iterations make of the solve's round-off (1e-6 relative; a wrong sum over the ranks' shared
-# vertices would be far off).
-for name in ["stiff-stretched-2d", "stiff-stretched-3d"]:
-    args = scene(name) + ["-space", "cr"] + tight
+# vertices would be far off). P1: the patches with stretched cells minimise in the full RT0 mass matrix (its
+# diagonal alone put eta at 86 times the error in 3D); the same on 2 ranks to 1e-10 in 3D when solved to 1e-14
+# (the flux spreads the solver's residual over the thin patches: at 1e-13 the ranks differ by 1e-10). In 2D the
+# two ranks' solves themselves stop 4e-10 apart in energy (absolute tolerance; the diagonal's eta differed by
+# 8e-10 too), so there 1e-8.
+tighter = ["-ksp_rtol", "1e-14", "-snes_rtol", "1e-14"]
+for name, el in [(n, el) for n in ["stiff-stretched-2d", "stiff-stretched-3d"] for el in ["cr", "p1"]]:
+    args = scene(name) + ["-space", el] + (tight if el == "cr" else tighter)
     _, _, _, s1 = run(args)
     _, _, _, s2 = run(args, ranks=2)
     eta, err = s1["estimate"]["eta"], s1["error"]["energy"]
-    c.check(err <= eta <= 3 * err, "%s cr: energy error %.4e <= eta %.4e <= 3 x error (index %.3f)" % (name, err, eta, eta / err))
-    c.check(rel(eta, s2["estimate"]["eta"]) <= 1e-6, "%s cr: eta %.12e on 1 rank, %.12e on 2" % (name, eta, s2["estimate"]["eta"]))
+    c.check(err <= eta <= 3 * err, "%s %s: energy error %.4e <= eta %.4e <= 3 x error (index %.3f)" % (name, el, err, eta, eta / err))
+    limit = 1e-6 if el == "cr" else (1e-8 if name.endswith("2d") else 1e-10)
+    c.check(rel(eta, s2["estimate"]["eta"]) <= limit, "%s %s: eta %.12e on 1 rank, %.12e on 2 (%.0e)" % (name, el, eta, s2["estimate"]["eta"], limit))
 
 # 3. The same estimate on 1 and 2 ranks.
 for name, extra in [(n, ["-space", el] + x) for n, x in [("manufactured-2d", ["-refine", "1"]), ("manufactured-3d", ["-box_faces", "2", "-refine", "2"])] for el in ["cr", "p1"]]:

@@ -11,6 +11,7 @@
 //     F = ||kappa^{-1/2}(kappa grad u_h - sigma)|| plus the oscillation of f bounds the true energy error
 //     (all three by quadrature of degree 8 here), at three mesh sizes; the efficiency index is printed;
 //   - the same F on 2 ranks as for the same scene built and solved on one rank (PETSC_COMM_SELF);
+//   - all of the above on cells of aspect ratio 1000 too (the patch problems in the full mass matrices);
 //   - the same flux from the 2D patch solve along the cells around each vertex (cycle or path, the
 //     default) as from the general sparse elimination of the same patch problems (to round-off).
 #include "signorini/contact.h"
@@ -303,6 +304,13 @@ static PetscErrorCode TestInvariants(unit::Checker &ck)
       s.neumann = {right}, s.active = active;
       scenes.push_back(s);
     }
+    // Cells of aspect ratio 1000 (the box's height 1e-3): the patches minimise in the full RT0 mass
+    // matrices (SolveCoupled), contact forcing and gathered patches (2 ranks) included.
+    Scene t = scenes[scenes.size() - 2];
+    t.name  = Format("%dD contact, stretched", (int)dim);
+    t.mesh.upper[dim - 1] = 1e-3;
+    t.data.psi            = "-0.0005 + 0.001 * x"; // above u_D = 0 on the top 1e-3 away: active for x > 0.5
+    scenes.push_back(t);
     Scene p;
     p.name = Format("%dD Dirichlet-Neumann", (int)dim);
     p.mesh = Box(dim, dim == 2 ? 8 : 3);

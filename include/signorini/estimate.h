@@ -27,7 +27,8 @@
 // P1 (Braess-Schoeberl, Ern-Vohralik): sigma = sum over vertices a of sigma_a, sigma_a in RT0 on the patch
 // of a, with int_T div sigma_a = int_T (kappa grad u_h . grad psi_a - f psi_a) on each cell, zero normal
 // flux on the faces of the patch without a, closest to the cellwise RT0 interpolant of psi_a kappa grad u_h
-// (see equilibrate.cpp for the Neumann, Dirichlet and contact faces).
+// in the diagonal of the RT0 mass matrix, or in the full matrix on patches with stretched cells (see
+// equilibrate.cpp, also for the Neumann, Dirichlet and contact faces).
 #pragma once
 
 #include "signorini/assembly.h"
