@@ -435,20 +435,28 @@ static PetscErrorCode TestCase(unit::Checker &ck, const Case &k, PetscInt steps)
   PetscFunctionReturn(0);
 }
 
-// -bisect_time_faces n: one refinement of the cells with centroid x < 0.1 (10 %) of a box of 6 n^3 tetrahedra.
+// -bisect_time_faces n: one refinement of the cells with centroid x < fraction (-bisect_time_fraction,
+// 0.1 by default) of a box of 6 n^3 tetrahedra (-bisect_time_dim 2: 2 n^2 triangles), by their longest
+// edges or (-bisect_time_all) all edges.
 static PetscErrorCode Time(PetscInt n)
 {
+  PetscReal fraction = 0.1;
+  PetscBool all      = PETSC_FALSE;
   MeshOptions o;
   DM          dm, fine;
   PetscFunctionBeginUser;
-  o.dim = 3, o.faces[0] = o.faces[1] = o.faces[2] = n, o.coarsen = false;
+  PetscCall(PetscOptionsGetReal(NULL, NULL, "-bisect_time_fraction", &fraction, NULL));
+  PetscCall(PetscOptionsGetBool(NULL, NULL, "-bisect_time_all", &all, NULL));
+  PetscInt dim = 3;
+  PetscCall(PetscOptionsGetInt(NULL, NULL, "-bisect_time_dim", &dim, NULL));
+  o.dim = dim, o.faces[0] = o.faces[1] = o.faces[2] = n, o.coarsen = false;
   PetscCall(CreateMesh(PETSC_COMM_WORLD, o, &dm));
   std::vector<char> marked;
-  PetscCall(Mark(dm, [](const PetscReal *x, const std::vector<std::array<double, 3>> &) { return x[0] < 0.1; }, marked));
+  PetscCall(Mark(dm, [&](const PetscReal *x, const std::vector<std::array<double, 3>> &) { return x[0] < fraction; }, marked));
   PetscLogDouble t0;
   double         seconds;
   PetscCall(PetscTime(&t0));
-  PetscCall(RefineMarkedBisection(dm, marked, &fine, NULL));
+  PetscCall(RefineMarkedBisection(dm, marked, &fine, NULL, all));
   PetscCall(SecondsSince(PETSC_COMM_WORLD, t0, &seconds));
   PetscInt counts[3] = {0, 0, 0}, cS, cE, fS, fE;
   PetscCall(DMPlexGetHeightStratum(dm, 0, &cS, &cE));
