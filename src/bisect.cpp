@@ -86,21 +86,33 @@ PetscErrorCode ReadCoarse(DM dm, Coarse &m)
     for (PetscInt d = 0; d < m.cdim; ++d) m.x[3 * (v - m.vS) + d] = PetscRealPart(cx[off + d]);
   }
   PetscCall(VecRestoreArrayRead(cvec, &cx));
+  // The cones straight from the plex's arrays (DMPlexGetCone's result, without a call per point).
+  const DM_Plex *plex = (const DM_Plex *)dm->data;
+  const auto     cone = [plex](PetscInt p) { return plex->cones + plex->coneSection->atlasOff[p - plex->coneSection->pStart]; };
   m.edgeVerts.resize(2 * m.NumEdges());
-  for (PetscInt e = m.eS; e < m.eE; ++e) {
-    const PetscInt *cone;
-    PetscCall(DMPlexGetCone(dm, e, &cone));
-    for (PetscInt k = 0; k < 2; ++k) m.edgeVerts[2 * (e - m.eS) + k] = cone[k] - m.vS;
-  }
+  for (PetscInt e = m.eS; e < m.eE; ++e)
+    for (PetscInt k = 0; k < 2; ++k) m.edgeVerts[2 * (e - m.eS) + k] = cone(e)[k] - m.vS;
+  // A simplex's vertices in SimplexVertices' order: those of its first facet, then the one of its second
+  // facet not on the first.
+  const auto triangle = [&](PetscInt p, PetscInt *v) {
+    const PetscInt *a = &m.edgeVerts[2 * (cone(p)[0] - m.eS)], *b = &m.edgeVerts[2 * (cone(p)[1] - m.eS)];
+    v[0] = a[0], v[1] = a[1];
+    for (PetscInt i = 0; i < 2; ++i)
+      if (b[i] != v[0] && b[i] != v[1]) v[2] = b[i];
+  };
   m.cellVerts.resize((m.dim + 1) * m.NumCells());
   m.cellEdges.resize(m.nce * m.NumCells());
   if (m.dim == 3) m.cellFaces.resize(4 * m.NumCells());
   for (PetscInt c = m.cS; c < m.cE; ++c) {
-    PetscInt        verts[4], n = 0, edges[6];
-    const PetscInt *cone;
-    PetscCall(SimplexVertices(dm, c, m.dim, verts));
+    PetscInt  n = 0, edges[6];
     PetscInt *cv = &m.cellVerts[(m.dim + 1) * (c - m.cS)];
-    for (PetscInt k = 0; k <= m.dim; ++k) cv[k] = verts[k] - m.vS;
+    if (m.dim == 2) triangle(c, cv);
+    else {
+      PetscInt second[3];
+      triangle(cone(c)[0], cv), triangle(cone(c)[1], second);
+      for (PetscInt i = 0; i < 3; ++i)
+        if (std::find(cv, cv + 3, second[i]) == cv + 3) cv[3] = second[i];
+    }
     // The cell-local vertices (bits) of coarse edge e.
     const auto bits = [&](PetscInt e) {
       int b = 0;
@@ -110,19 +122,18 @@ PetscErrorCode ReadCoarse(DM dm, Coarse &m)
     };
     // The edges: the cone of a triangle, the edges of the faces of a tetrahedron without repeats. Each
     // goes to the place of its vertex pair, each face to the place of the vertex it misses.
-    PetscCall(DMPlexGetCone(dm, c, &cone));
+    const PetscInt *ccone = cone(c);
     if (m.dim == 2)
-      for (PetscInt k = 0; k < 3; ++k) edges[n++] = cone[k] - m.eS;
+      for (PetscInt k = 0; k < 3; ++k) edges[n++] = ccone[k] - m.eS;
     else
       for (PetscInt f = 0; f < 4; ++f) {
-        const PetscInt *fcone;
-        int             on = 0;
-        PetscCall(DMPlexGetCone(dm, cone[f], &fcone));
+        const PetscInt *fcone = cone(ccone[f]);
+        int             on    = 0;
         for (PetscInt k = 0; k < 3; ++k) {
           if (std::find(edges, edges + n, fcone[k] - m.eS) == edges + n) edges[n++] = fcone[k] - m.eS;
           on |= bits(fcone[k] - m.eS);
         }
-        m.cellFaces[4 * (c - m.cS) + kOpposite[on]] = cone[f];
+        m.cellFaces[4 * (c - m.cS) + kOpposite[on]] = ccone[f];
       }
     PetscCheck(n == m.nce, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: cell %" PetscInt_FMT " has %" PetscInt_FMT " edges", c, n);
     for (PetscInt k = 0; k < n; ++k) m.cellEdges[m.nce * (c - m.cS) + kPairOf[bits(edges[k])]] = edges[k];
@@ -378,6 +389,7 @@ struct Fine {
   std::vector<PetscInt> childEdge, childTri;     // per child: the edge of pair k, the triangle of face k (3D)
   std::vector<PetscInt> parentOf;                // per child: the coarse cell (as c - cStart)
   std::vector<PetscInt> childVerts;              // per child: its fine vertices (in Children::verts' order)
+  std::vector<PetscInt> triEdges;                // per triangle (a, b, c): its edges (a, b), (b, c), (c, a)
   PetscInt              Vertex(PetscInt i) const { return nc + i; }
   PetscInt              Tri(PetscInt j) const { return nc + nv + j; }
   PetscInt              Edge(PetscInt j) const { return nc + nv + nt + j; }
@@ -395,50 +407,38 @@ PetscInt Carrier(const Coarse &m, PetscInt c, int on)
   return -1;
 }
 
-// Numbers the distinct keys (sorted vertex sets of N fine vertices, one per occurrence o < n, from
-// keyOf(o)) in increasing order: idOf[occurrence] = number, `verts` gets each key once, `first` its
-// first occurrence. The occurrences are bucketed by their first vertex (a counting sort), and each
-// bucket, a few dozen, sorted by the rest of the key: two passes over the occurrences, where a radix sort
-// by every vertex made N, each moving all records.
-template <size_t N, class KeyOf>
-void Distinct(PetscInt n, PetscInt numVertices, const KeyOf &keyOf, std::vector<PetscInt> &idOf, std::vector<PetscInt> &verts, std::vector<PetscInt> &first)
+// Numbers the distinct keys (pairs (bucket, rest), one per occurrence o < n, from keyOf(o)) in increasing
+// order: idOf[occurrence] = number, `keys` gets each key once (2 numbers), `first` its first occurrence.
+// The occurrences are bucketed (a counting sort) and each bucket, a few dozen, sorted by the rest: two
+// passes over the occurrences, where a radix sort by every vertex of a key moved all of them once per
+// vertex.
+template <class KeyOf>
+void Distinct(PetscInt n, PetscInt numBuckets, const KeyOf &keyOf, std::vector<PetscInt> &idOf, std::vector<PetscInt> &keys, std::vector<PetscInt> &first)
 {
   struct Record {
-    std::array<PetscInt, N - 1> rest;
-    PetscInt                    o;
-    bool SameKey(const Record &r) const
-    {
-      for (size_t i = 0; i + 1 < N; ++i)
-        if (rest[i] != r.rest[i]) return false;
-      return true;
-    }
-    bool operator<(const Record &r) const
-    {
-      for (size_t i = 0; i + 1 < N; ++i)
-        if (rest[i] != r.rest[i]) return rest[i] < r.rest[i];
-      return o < r.o;
-    }
+    PetscInt rest, o;
+    bool     operator<(const Record &r) const { return rest != r.rest ? rest < r.rest : o < r.o; }
   };
-  std::vector<PetscInt> start(numVertices + 1, 0);
+  std::vector<PetscInt> start(numBuckets + 1, 0);
   for (PetscInt o = 0; o < n; ++o) ++start[keyOf(o)[0] + 1];
   std::partial_sum(start.begin(), start.end(), start.begin());
   std::vector<Record> rec(n);
   for (PetscInt o = 0; o < n; ++o) {
-    const std::array<PetscInt, N> k = keyOf(o);
-    Record                       &r = rec[start[k[0]]++];
-    std::copy(k.begin() + 1, k.end(), r.rest.begin()), r.o = o;
+    const std::array<PetscInt, 2> k = keyOf(o);
+    rec[start[k[0]]++]              = {k[1], o};
   }
-  // start[v] is now where bucket v + 1 starts.
+  // start[b] is now where bucket b + 1 starts.
   idOf.resize(n);
-  verts.clear(), first.clear();
+  keys.clear(), first.clear();
+  keys.reserve(2 * n), first.reserve(n); // pages untouched beyond the distinct keys
   PetscInt id = -1;
-  for (PetscInt v = 0, lo = 0; v < numVertices; lo = start[v++]) {
-    Record *b = rec.data() + lo, *e = rec.data() + start[v];
-    std::sort(b, e);
-    for (const Record *r = b; r < e; ++r) {
-      if (r == b || !r->SameKey(r[-1])) {
+  for (PetscInt b = 0, lo = 0; b < numBuckets; lo = start[b++]) {
+    Record *r0 = rec.data() + lo, *r1 = rec.data() + start[b];
+    std::sort(r0, r1);
+    for (const Record *r = r0; r < r1; ++r) {
+      if (r == r0 || r->rest != r[-1].rest) {
         ++id;
-        verts.push_back(v), verts.insert(verts.end(), r->rest.begin(), r->rest.end());
+        keys.push_back(b), keys.push_back(r->rest);
         first.push_back(r->o);
       }
       idOf[r->o] = id;
@@ -476,7 +476,8 @@ void FinePoints(const Coarse &m, const Children &ch, const std::vector<PetscInt>
   const PetscInt *cv = f.childVerts.data();
   const char     *on = ch.on.data();
   std::vector<PetscInt> first;
-  Distinct<2>(
+  // Edges (a, b), a < b, bucketed by a.
+  Distinct(
     nce * f.nc, f.nv,
     [&](PetscInt o) {
       const PetscInt *v = cv + nb * (o / nce), *p = kPair[o % nce];
@@ -485,46 +486,41 @@ void FinePoints(const Coarse &m, const Children &ch, const std::vector<PetscInt>
     f.childEdge, f.edgeVerts, first);
   f.ne = (PetscInt)first.size();
   f.edgeCarrier.resize(f.ne);
-  for (PetscInt j = 0; j < f.ne; ++j) {
-    const PetscInt t = first[j] / nce, *p = kPair[first[j] % nce];
-    f.edgeCarrier[j] = Carrier(m, f.parentOf[t], on[nb * t + p[0]] | on[nb * t + p[1]]);
+  for (PetscInt o = 0; o < nce * f.nc; ++o) {
+    const PetscInt j = f.childEdge[o], t = o / nce, *p = kPair[o % nce];
+    if (first[j] == o) f.edgeCarrier[j] = Carrier(m, f.parentOf[t], on[nb * t + p[0]] | on[nb * t + p[1]]);
   }
   if (m.dim == 2) return;
-  Distinct<3>(
-    4 * f.nc, f.nv,
+  // Triangles (a, b, c), a < b < c, bucketed by their edge (a, b): the edges are numbered in the order of
+  // (a, b), so the order of (edge, c) is that of (a, b, c), and the buckets are small.
+  std::vector<PetscInt> edgeAndTop;
+  Distinct(
+    4 * f.nc, f.ne,
     [&](PetscInt o) {
-      const PetscInt *v = cv + 4 * (o / 4), *r = kRefFace[o % 4];
-      std::array<PetscInt, 3> k = {v[r[0]], v[r[1]], v[r[2]]};
-      if (k[0] > k[1]) std::swap(k[0], k[1]);
-      if (k[1] > k[2]) std::swap(k[1], k[2]);
-      if (k[0] > k[1]) std::swap(k[0], k[1]);
-      return k;
+      const PetscInt  t = o / 4, *v = cv + 4 * t, *r = kRefFace[o % 4];
+      const PetscInt top = v[r[0]] > v[r[1]] ? (v[r[0]] > v[r[2]] ? 0 : 2) : (v[r[1]] > v[r[2]] ? 1 : 2);
+      const int      low = (1 << r[0] | 1 << r[1] | 1 << r[2]) & ~(1 << r[top]);
+      return std::array<PetscInt, 2>{f.childEdge[6 * t + kPairOf[low]], v[r[top]]};
     },
-    f.childTri, f.triVerts, first);
+    f.childTri, edgeAndTop, first);
   f.nt = (PetscInt)first.size();
-  f.triCarrier.resize(f.nt);
+  f.triVerts.resize(3 * f.nt);
   for (PetscInt j = 0; j < f.nt; ++j) {
-    const PetscInt t = first[j] / 4, *r = kRefFace[first[j] % 4];
-    f.triCarrier[j] = Carrier(m, f.parentOf[t], on[4 * t + r[0]] | on[4 * t + r[1]] | on[4 * t + r[2]]);
+    const PetscInt e = edgeAndTop[2 * j];
+    f.triVerts[3 * j] = f.edgeVerts[2 * e], f.triVerts[3 * j + 1] = f.edgeVerts[2 * e + 1], f.triVerts[3 * j + 2] = edgeAndTop[2 * j + 1];
   }
-}
-
-// The edges of each triangle (3D), as fine edge numbers, in its cone order: for a triangle (a, b, c),
-// a < b < c, the edges (a, b), (b, c), (c, a), found in a child that has it.
-void TriangleEdges(const Fine &f, std::vector<PetscInt> &triEdges)
-{
-  triEdges.assign(3 * f.nt, -1);
-  for (PetscInt t = 0; t < f.nc; ++t) {
-    const PetscInt *v = &f.childVerts[4 * t];
-    for (PetscInt k = 0; k < 4; ++k) {
-      const PetscInt  tri = f.childTri[4 * t + k];
-      const PetscInt *has = &f.triVerts[3 * tri];
-      if (triEdges[3 * tri] >= 0) continue;
-      for (PetscInt e = 0; e < 3; ++e) {
-        const PetscInt ia = std::find(v, v + 4, has[e]) - v, ib = std::find(v, v + 4, has[(e + 1) % 3]) - v;
-        triEdges[3 * tri + e] = f.childEdge[6 * t + kPairOf[(1 << ia) | (1 << ib)]];
-      }
-    }
+  // The carrier and the edges, from the triangle's first occurrence in a child (in the children's order,
+  // which reads them in order).
+  f.triCarrier.resize(f.nt);
+  f.triEdges.resize(3 * f.nt);
+  for (PetscInt o = 0; o < 4 * f.nc; ++o) {
+    const PetscInt j = f.childTri[o];
+    if (first[j] != o) continue;
+    const PetscInt t = o / 4, *r = kRefFace[o % 4], *v = cv + 4 * t, *abc = &f.triVerts[3 * j];
+    f.triCarrier[j] = Carrier(m, f.parentOf[t], on[4 * t + r[0]] | on[4 * t + r[1]] | on[4 * t + r[2]]);
+    int bit[3]; // of a, b, c: their vertex in the child
+    for (PetscInt i = 0; i < 3; ++i) bit[v[r[i]] == abc[0] ? 0 : v[r[i]] == abc[1] ? 1 : 2] = 1 << r[i];
+    for (PetscInt e = 0; e < 3; ++e) f.triEdges[3 * j + e] = f.childEdge[6 * t + kPairOf[bit[e] | bit[(e + 1) % 3]]];
   }
 }
 
@@ -572,10 +568,9 @@ PetscErrorCode CellCones(const Fine &f, PetscInt *cones, PetscInt *ornts)
 PetscErrorCode BuildPlex(DM dm, const Fine &f)
 {
   const PetscInt        nb = f.dim + 1, end = f.End();
-  std::vector<PetscInt> triEdges, at(end + 1, 0);
+  std::vector<PetscInt> at(end + 1, 0);
   PetscInt              size;
   PetscFunctionBeginUser;
-  if (f.dim == 3) TriangleEdges(f, triEdges);
   PetscCall(DMPlexSetChart(dm, 0, end));
   DM_Plex     *mesh = (DM_Plex *)dm->data;
   PetscSection cs = mesh->coneSection, ss = mesh->supportSection;
@@ -584,7 +579,7 @@ PetscErrorCode BuildPlex(DM dm, const Fine &f)
   for (PetscInt p = 0; p < end; ++p) cs->atlasDof[p] = coneSize(p);
   // The supports' sizes: every point once in the cone of each point that has it.
   for (PetscInt k : f.dim == 2 ? f.childEdge : f.childTri) ++at[(f.dim == 2 ? f.Edge(k) : f.Tri(k)) + 1];
-  for (PetscInt k : triEdges) ++at[f.Edge(k) + 1];
+  for (PetscInt k : f.triEdges) ++at[f.Edge(k) + 1];
   for (PetscInt k : f.edgeVerts) ++at[f.Vertex(k) + 1];
   std::copy(at.begin() + 1, at.end(), ss->atlasDof);
   cs->maxDof = ss->maxDof = PETSC_MIN_INT; // recomputed when asked for (see PetscSectionInvalidateMaxDof_Internal)
@@ -594,7 +589,7 @@ PetscErrorCode BuildPlex(DM dm, const Fine &f)
   PetscCall(CellCones(f, mesh->cones, mesh->coneOrientations));
   PetscInt *tcone = mesh->cones + nb * f.nc, *tornt = mesh->coneOrientations + nb * f.nc;
   for (PetscInt j = 0; j < f.nt; ++j)
-    for (PetscInt e = 0; e < 3; ++e) tcone[3 * j + e] = f.Edge(triEdges[3 * j + e]), tornt[3 * j + e] = e == 2 ? -1 : 0;
+    for (PetscInt e = 0; e < 3; ++e) tcone[3 * j + e] = f.Edge(f.triEdges[3 * j + e]), tornt[3 * j + e] = e == 2 ? -1 : 0;
   PetscInt *econe = tcone + 3 * f.nt, *eornt = tornt + 3 * f.nt;
   for (PetscInt j = 0; j < 2 * f.ne; ++j) econe[j] = f.Vertex(f.edgeVerts[j]), eornt[j] = 0;
   std::partial_sum(at.begin(), at.end(), at.begin()); // at[q]: where q's support starts
@@ -729,22 +724,27 @@ PetscErrorCode CarryLabels(DM coarse, DM fine, const Coarse &m, const Fine &f)
   for (PetscInt c : f.parentOf) ++children[c + 1];
   std::partial_sum(children.begin(), children.end(), children.begin());
   PetscFunctionBeginUser;
-  // Each stratum is made at once from its sorted points (a general index set), not point by point.
+  // Each stratum is made at once from its sorted points (a general index set), not point by point; the
+  // children of coarse cells in increasing order come in increasing order.
   PetscCall(ForEachLabelStratum(coarse, fine, [&](DMLabel label, PetscInt value, const PetscInt *points, PetscInt n) -> PetscErrorCode {
-    std::vector<PetscInt> fine;
-    PetscInt             *sorted;
-    IS                    is;
+    PetscInt  count = 0, *pts;
+    IS        is;
     PetscFunctionBeginUser;
     for (PetscInt i = 0; i < n; ++i) {
       const PetscInt q = points[i];
-      if (q >= m.cS && q < m.cE)
-        for (PetscInt t = children[q - m.cS]; t < children[q - m.cS + 1]; ++t) fine.push_back(t);
-      if (q >= m.fS && q < m.fE) fine.insert(fine.end(), faces.begin() + start[q - m.fS], faces.begin() + start[q - m.fS + 1]);
+      if (q >= m.cS && q < m.cE) count += children[q - m.cS + 1] - children[q - m.cS];
+      if (q >= m.fS && q < m.fE) count += start[q - m.fS + 1] - start[q - m.fS];
     }
-    std::sort(fine.begin(), fine.end());
-    PetscCall(PetscMalloc1(fine.size(), &sorted));
-    std::copy(fine.begin(), fine.end(), sorted);
-    PetscCall(ISCreateGeneral(PETSC_COMM_SELF, (PetscInt)fine.size(), sorted, PETSC_OWN_POINTER, &is));
+    PetscCall(PetscMalloc1(count, &pts));
+    PetscInt *at = pts;
+    for (PetscInt i = 0; i < n; ++i) {
+      const PetscInt q = points[i];
+      if (q >= m.cS && q < m.cE)
+        for (PetscInt t = children[q - m.cS]; t < children[q - m.cS + 1]; ++t) *at++ = t;
+      if (q >= m.fS && q < m.fE) at = std::copy(faces.begin() + start[q - m.fS], faces.begin() + start[q - m.fS + 1], at);
+    }
+    if (!std::is_sorted(pts, pts + count)) std::sort(pts, pts + count);
+    PetscCall(ISCreateGeneral(PETSC_COMM_SELF, count, pts, PETSC_OWN_POINTER, &is));
     PetscCall(DMLabelSetStratumIS(label, value, is));
     PetscCall(ISDestroy(&is));
     PetscFunctionReturn(0);
