@@ -53,6 +53,7 @@ struct Coarse {
   PetscInt               pS = 0, pE = 0, cS = 0, cE = 0, fS = 0, fE = 0, eS = 0, eE = 0, vS = 0, vE = 0;
   std::vector<PetscReal> x;         // 3 per vertex (zero-padded)
   std::vector<PetscInt>  edgeVerts; // 2 per edge, as v - vS
+  std::vector<PetscReal> edgeLen2;  // per edge, see EdgeOrder
   std::vector<PetscInt>  cellVerts; // dim + 1 per cell, as v - vS
   std::vector<PetscInt>  cellEdges; // nce per cell, as e - eS: the edge of the cell's vertex pair k (kPair)
   std::vector<PetscInt>  cellFaces; // 3D: 4 per cell, coarse points: face k is the one opposite vertex k
@@ -142,15 +143,23 @@ PetscErrorCode ReadCoarse(DM dm, Coarse &m)
 }
 
 // The global order of edges (see the top of the file) as a comparison: before(e, f) when local edge e comes
-// before f. Only edges of one cell are ever compared, so each comparison computes the two keys from the
-// coordinates instead of sorting all edges once (that sort was half of the refinement's time).
+// before f. Only edges of one cell are ever compared, so a comparison of edges of equal length computes
+// the two keys from the coordinates instead of sorting all edges once (that sort was half of the
+// refinement's time).
 class EdgeOrder {
 public:
   explicit EdgeOrder(const Coarse &m) : m_(m) {}
+  // The squared length of every edge, which decides most comparisons (KeyOf's, bit for bit).
+  static void Lengths(Coarse &m)
+  {
+    m.edgeLen2.resize(m.NumEdges());
+    for (PetscInt e = 0; e < m.NumEdges(); ++e) m.edgeLen2[e] = EdgeOrder(m).KeyOf(e).len2;
+  }
   bool operator()(PetscInt e, PetscInt f) const
   {
+    const PetscReal *len2 = m_.edgeLen2.data();
+    if (len2[e] != len2[f]) return len2[e] > len2[f];
     const Key a = KeyOf(e), b = KeyOf(f);
-    if (a.len2 != b.len2) return a.len2 > b.len2;
     return std::tie(a.mid, a.lo, a.hi) < std::tie(b.mid, b.lo, b.hi);
   }
 
@@ -567,9 +576,8 @@ PetscErrorCode CellCones(const Fine &f, PetscInt *cones, PetscInt *ornts)
 // chart (cells, vertices, triangles, edges).
 PetscErrorCode BuildPlex(DM dm, const Fine &f)
 {
-  const PetscInt        nb = f.dim + 1, end = f.End();
-  std::vector<PetscInt> at(end + 1, 0);
-  PetscInt              size;
+  const PetscInt nb = f.dim + 1, end = f.End();
+  PetscInt       size, supportSize;
   PetscFunctionBeginUser;
   PetscCall(DMPlexSetChart(dm, 0, end));
   DM_Plex     *mesh = (DM_Plex *)dm->data;
@@ -578,28 +586,29 @@ PetscErrorCode BuildPlex(DM dm, const Fine &f)
   const auto coneSize = [&](PetscInt p) { return p < f.nc ? nb : p < f.Tri(0) ? 0 : p < f.Edge(0) ? 3 : 2; };
   for (PetscInt p = 0; p < end; ++p) cs->atlasDof[p] = coneSize(p);
   // The supports' sizes: every point once in the cone of each point that has it.
-  for (PetscInt k : f.dim == 2 ? f.childEdge : f.childTri) ++at[(f.dim == 2 ? f.Edge(k) : f.Tri(k)) + 1];
-  for (PetscInt k : f.triEdges) ++at[f.Edge(k) + 1];
-  for (PetscInt k : f.edgeVerts) ++at[f.Vertex(k) + 1];
-  std::copy(at.begin() + 1, at.end(), ss->atlasDof);
+  PetscInt *count = ss->atlasDof;
+  std::fill(count, count + end, 0);
+  for (PetscInt k : f.dim == 2 ? f.childEdge : f.childTri) ++count[f.dim == 2 ? f.Edge(k) : f.Tri(k)];
+  for (PetscInt k : f.triEdges) ++count[f.Edge(k)];
+  for (PetscInt k : f.edgeVerts) ++count[f.Vertex(k)];
   cs->maxDof = ss->maxDof = PETSC_MIN_INT; // recomputed when asked for (see PetscSectionInvalidateMaxDof_Internal)
   PetscCall(DMSetUp(dm)); // sets up the sections, allocates the cones and supports
   PetscCall(PetscSectionGetStorageSize(cs, &size));
-  PetscCheck(size == nb * f.nc + 3 * f.nt + 2 * f.ne, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: %" PetscInt_FMT " cone entries", size);
+  PetscCall(PetscSectionGetStorageSize(ss, &supportSize));
+  PetscCheck(size == nb * f.nc + 3 * f.nt + 2 * f.ne && supportSize == size && (!size || mesh->supports), PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: %" PetscInt_FMT " cone and %" PetscInt_FMT " support entries", size, supportSize);
   PetscCall(CellCones(f, mesh->cones, mesh->coneOrientations));
   PetscInt *tcone = mesh->cones + nb * f.nc, *tornt = mesh->coneOrientations + nb * f.nc;
   for (PetscInt j = 0; j < f.nt; ++j)
     for (PetscInt e = 0; e < 3; ++e) tcone[3 * j + e] = f.Edge(f.triEdges[3 * j + e]), tornt[3 * j + e] = e == 2 ? -1 : 0;
   PetscInt *econe = tcone + 3 * f.nt, *eornt = tornt + 3 * f.nt;
   for (PetscInt j = 0; j < 2 * f.ne; ++j) econe[j] = f.Vertex(f.edgeVerts[j]), eornt[j] = 0;
-  std::partial_sum(at.begin(), at.end(), at.begin()); // at[q]: where q's support starts
-  if (size) {
-    PetscInt off;
-    PetscCall(PetscSectionGetOffset(ss, end - 1, &off));
-    PetscCheck(off == at[end - 1] && mesh->supports, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: unexpected support layout");
-  }
+  // Each point's supports by increasing point; the sizes count up again from 0 as the places are filled.
+  std::fill(count, count + end, 0);
   for (PetscInt p = 0, i = 0; p < end; ++p)
-    for (PetscInt k = coneSize(p); k > 0; --k, ++i) mesh->supports[at[mesh->cones[i]]++] = p;
+    for (PetscInt k = coneSize(p); k > 0; --k, ++i) {
+      const PetscInt q = mesh->cones[i];
+      mesh->supports[ss->atlasOff[q] + count[q]++] = p;
+    }
   // Depth strata, as DMPlexStratify makes them (a stride set per depth; on every rank every depth).
   DMLabel        depth;
   const PetscInt range[4][2] = {{f.Vertex(0), f.Vertex(f.nv)}, {f.Edge(0), end}, {f.Tri(0), f.Tri(f.nt)}, {0, f.nc}};
@@ -765,6 +774,7 @@ PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked,
   PetscCall(ReadCoarse(coarse, m));
   PetscCheck((PetscInt)marked.size() == m.NumCells(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "RefineMarkedBisection: %zu marks for %" PetscInt_FMT " cells", marked.size(), m.NumCells());
   PetscCall(GetSharing(coarse, m, sh));
+  EdgeOrder::Lengths(m);
   const EdgeOrder   before(m);
   std::vector<char> mark;
   PetscCall(CloseMarks(PetscObjectComm((PetscObject)coarse), m, sh, before, marked, allEdges, mark));
