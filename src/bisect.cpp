@@ -25,7 +25,8 @@
 #include "signorini/mesh.h"
 #include "signorini/refine.h"
 
-#include <petsc/private/dmpleximpl.h> // DM_Plex: the cones, supports and depth state, see BuildPlex
+#include <petsc/private/dmpleximpl.h>  // DM_Plex: the cones, supports and depth state, see BuildPlex
+#include <petsc/private/sectionimpl.h> // the sizes of the cones and supports, see BuildPlex
 
 #include <algorithm>
 #include <array>
@@ -36,16 +37,26 @@ namespace signorini {
 
 namespace {
 
+// The vertex pairs of a simplex (a triangle's edges are the first three, in PETSc's cone order: edge k
+// runs from vertex k to k + 1) and the faces of PETSc's reference tetrahedron.
+const PetscInt kPair[6][2]    = {{0, 1}, {1, 2}, {2, 0}, {0, 3}, {1, 3}, {2, 3}};
+const PetscInt kRefFace[4][3] = {{0, 1, 2}, {0, 3, 1}, {0, 2, 3}, {2, 1, 3}};
+
+// By the set of a cell's local vertices (bits): the pair k of kPair with these two vertices, the vertex
+// that three vertices miss (tetrahedra), -1 otherwise.
+const PetscInt kPairOf[16]   = {-1, -1, -1, 0, -1, 2, 1, -1, -1, 3, 4, -1, 5, -1, -1, -1};
+const PetscInt kOpposite[16] = {-1, -1, -1, -1, -1, -1, -1, 3, -1, -1, -1, 2, -1, 1, 0, -1};
+
 // The coarse mesh of one rank as tables.
 struct Coarse {
   PetscInt               dim = 0, cdim = 0, nce = 0; // nce: edges per cell
   PetscInt               pS = 0, pE = 0, cS = 0, cE = 0, fS = 0, fE = 0, eS = 0, eE = 0, vS = 0, vE = 0;
   std::vector<PetscReal> x;         // 3 per vertex (zero-padded)
   std::vector<PetscInt>  edgeVerts; // 2 per edge, as v - vS
+  std::vector<PetscReal> edgeLen2;  // per edge, see EdgeOrder
   std::vector<PetscInt>  cellVerts; // dim + 1 per cell, as v - vS
-  std::vector<PetscInt>  cellEdges; // nce per cell, as e - eS
-  std::vector<PetscInt>  cellFaces; // 3D: 4 per cell (cone), coarse points
-  std::vector<PetscInt>  faceEdges; // 3D: 3 per face, as e - eS
+  std::vector<PetscInt>  cellEdges; // nce per cell, as e - eS: the edge of the cell's vertex pair k (kPair)
+  std::vector<PetscInt>  cellFaces; // 3D: 4 per cell, coarse points: face k is the one opposite vertex k
   PetscInt               NumCells() const { return cE - cS; }
   PetscInt               NumVertices() const { return vE - vS; }
   PetscInt               NumEdges() const { return eE - eS; }
@@ -76,53 +87,79 @@ PetscErrorCode ReadCoarse(DM dm, Coarse &m)
     for (PetscInt d = 0; d < m.cdim; ++d) m.x[3 * (v - m.vS) + d] = PetscRealPart(cx[off + d]);
   }
   PetscCall(VecRestoreArrayRead(cvec, &cx));
+  // The cones straight from the plex's arrays (DMPlexGetCone's result, without a call per point).
+  const DM_Plex *plex = (const DM_Plex *)dm->data;
+  const auto     cone = [plex](PetscInt p) { return plex->cones + plex->coneSection->atlasOff[p - plex->coneSection->pStart]; };
   m.edgeVerts.resize(2 * m.NumEdges());
-  for (PetscInt e = m.eS; e < m.eE; ++e) {
-    const PetscInt *cone;
-    PetscCall(DMPlexGetCone(dm, e, &cone));
-    for (PetscInt k = 0; k < 2; ++k) m.edgeVerts[2 * (e - m.eS) + k] = cone[k] - m.vS;
-  }
+  for (PetscInt e = m.eS; e < m.eE; ++e)
+    for (PetscInt k = 0; k < 2; ++k) m.edgeVerts[2 * (e - m.eS) + k] = cone(e)[k] - m.vS;
+  // A simplex's vertices in SimplexVertices' order: those of its first facet, then the one of its second
+  // facet not on the first.
+  const auto triangle = [&](PetscInt p, PetscInt *v) {
+    const PetscInt *a = &m.edgeVerts[2 * (cone(p)[0] - m.eS)], *b = &m.edgeVerts[2 * (cone(p)[1] - m.eS)];
+    v[0] = a[0], v[1] = a[1];
+    for (PetscInt i = 0; i < 2; ++i)
+      if (b[i] != v[0] && b[i] != v[1]) v[2] = b[i];
+  };
   m.cellVerts.resize((m.dim + 1) * m.NumCells());
   m.cellEdges.resize(m.nce * m.NumCells());
+  if (m.dim == 3) m.cellFaces.resize(4 * m.NumCells());
   for (PetscInt c = m.cS; c < m.cE; ++c) {
-    PetscInt        verts[4], n = 0;
-    const PetscInt *cone;
-    PetscCall(SimplexVertices(dm, c, m.dim, verts));
-    for (PetscInt k = 0; k <= m.dim; ++k) m.cellVerts[(m.dim + 1) * (c - m.cS) + k] = verts[k] - m.vS;
-    // The edges: the cone of a triangle, the edges of the faces of a tetrahedron without repeats.
-    PetscInt *edges = &m.cellEdges[m.nce * (c - m.cS)];
-    PetscCall(DMPlexGetCone(dm, c, &cone));
+    PetscInt  n = 0, edges[6];
+    PetscInt *cv = &m.cellVerts[(m.dim + 1) * (c - m.cS)];
+    if (m.dim == 2) triangle(c, cv);
+    else {
+      PetscInt second[3];
+      triangle(cone(c)[0], cv), triangle(cone(c)[1], second);
+      for (PetscInt i = 0; i < 3; ++i)
+        if (std::find(cv, cv + 3, second[i]) == cv + 3) cv[3] = second[i];
+    }
+    // The cell-local vertices (bits) of coarse edge e.
+    const auto bits = [&](PetscInt e) {
+      int b = 0;
+      for (PetscInt i = 0; i <= m.dim; ++i)
+        if (cv[i] == m.edgeVerts[2 * e] || cv[i] == m.edgeVerts[2 * e + 1]) b |= 1 << i;
+      return b;
+    };
+    // The edges: the cone of a triangle, the edges of the faces of a tetrahedron without repeats. Each
+    // goes to the place of its vertex pair, each face to the place of the vertex it misses.
+    const PetscInt *ccone = cone(c);
     if (m.dim == 2)
-      for (PetscInt k = 0; k < 3; ++k) edges[n++] = cone[k] - m.eS;
+      for (PetscInt k = 0; k < 3; ++k) edges[n++] = ccone[k] - m.eS;
     else
       for (PetscInt f = 0; f < 4; ++f) {
-        const PetscInt *fcone;
-        PetscCall(DMPlexGetCone(dm, cone[f], &fcone));
-        for (PetscInt k = 0; k < 3; ++k)
+        const PetscInt *fcone = cone(ccone[f]);
+        int             on    = 0;
+        for (PetscInt k = 0; k < 3; ++k) {
           if (std::find(edges, edges + n, fcone[k] - m.eS) == edges + n) edges[n++] = fcone[k] - m.eS;
+          on |= bits(fcone[k] - m.eS);
+        }
+        m.cellFaces[4 * (c - m.cS) + kOpposite[on]] = ccone[f];
       }
     PetscCheck(n == m.nce, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: cell %" PetscInt_FMT " has %" PetscInt_FMT " edges", c, n);
-    if (m.dim == 3) m.cellFaces.insert(m.cellFaces.end(), cone, cone + 4);
+    for (PetscInt k = 0; k < n; ++k) m.cellEdges[m.nce * (c - m.cS) + kPairOf[bits(edges[k])]] = edges[k];
   }
-  if (m.dim == 3)
-    for (PetscInt f = m.fS; f < m.fE; ++f) {
-      const PetscInt *cone;
-      PetscCall(DMPlexGetCone(dm, f, &cone));
-      for (PetscInt k = 0; k < 3; ++k) m.faceEdges.push_back(cone[k] - m.eS);
-    }
   PetscFunctionReturn(0);
 }
 
 // The global order of edges (see the top of the file) as a comparison: before(e, f) when local edge e comes
-// before f. Only edges of one cell are ever compared, so each comparison computes the two keys from the
-// coordinates instead of sorting all edges once (that sort was half of the refinement's time).
+// before f. Only edges of one cell are ever compared, so a comparison of edges of equal length computes
+// the two keys from the coordinates instead of sorting all edges once (that sort was half of the
+// refinement's time).
 class EdgeOrder {
 public:
   explicit EdgeOrder(const Coarse &m) : m_(m) {}
+  // The squared length of every edge, which decides most comparisons (KeyOf's, bit for bit).
+  static void Lengths(Coarse &m)
+  {
+    m.edgeLen2.resize(m.NumEdges());
+    for (PetscInt e = 0; e < m.NumEdges(); ++e) m.edgeLen2[e] = EdgeOrder(m).KeyOf(e).len2;
+  }
   bool operator()(PetscInt e, PetscInt f) const
   {
+    const PetscReal *len2 = m_.edgeLen2.data();
+    if (len2[e] != len2[f]) return len2[e] > len2[f];
     const Key a = KeyOf(e), b = KeyOf(f);
-    if (a.len2 != b.len2) return a.len2 > b.len2;
     return std::tie(a.mid, a.lo, a.hi) < std::tie(b.mid, b.lo, b.hi);
   }
 
@@ -251,6 +288,8 @@ PetscErrorCode CloseMarks(MPI_Comm comm, const Coarse &m, const Sharing &sh, con
 struct Children {
   PetscInt              nv = 0;  // vertices per child
   std::vector<PetscInt> verts;   // nv per child, local ids
+  std::vector<char>     on;      // nv per child: the parent's vertices (bit k: its vertex k) that the
+                                 // child's vertex lies on (one: that vertex; two: their edge's midpoint)
   std::vector<PetscInt> start;   // children of coarse cell c: start[c] .. start[c + 1]
   std::vector<PetscReal> x;      // 3 per local id (midpoints of unmarked edges unused)
 };
@@ -277,12 +316,18 @@ void Cut(const Coarse &m, const EdgeOrder &before, const std::vector<char> &mark
     for (int d = 0; d < 3; ++d) ch.x[3 * (nV + e) + d] = 0.5 * (m.x[3 * m.edgeVerts[2 * e] + d] + m.x[3 * m.edgeVerts[2 * e + 1] + d]);
   ch.start.assign(1, 0);
   ch.verts.clear();
-  std::vector<std::array<PetscInt, 4>> cur, next;
-  std::vector<PetscInt>                cuts;
-  const PetscReal                      sign = m.dim == 2 ? 1 : -1;
+  ch.on.clear();
+  // A child's vertices (local ids) and the parent's vertices each lies on (bits, see Children::on).
+  struct Piece {
+    std::array<PetscInt, 4> v;
+    std::array<char, 4>     on;
+  };
+  std::vector<Piece>    cur, next;
+  std::vector<PetscInt> cuts;
+  const PetscReal       sign = m.dim == 2 ? 1 : -1;
   for (PetscInt c = 0; c < m.NumCells(); ++c) {
-    cur.assign(1, {0, 0, 0, 0});
-    std::copy(&m.cellVerts[nb * c], &m.cellVerts[nb * c] + nb, cur[0].begin());
+    cur.assign(1, {{0, 0, 0, 0}, {1, 2, 4, 8}});
+    std::copy(&m.cellVerts[nb * c], &m.cellVerts[nb * c] + nb, cur[0].v.begin());
     cuts.clear();
     for (PetscInt k = 0; k < m.nce; ++k)
       if (mark[m.cellEdges[m.nce * c + k]]) cuts.push_back(m.cellEdges[m.nce * c + k]);
@@ -290,20 +335,22 @@ void Cut(const Coarse &m, const EdgeOrder &before, const std::vector<char> &mark
     for (PetscInt e : cuts) {
       const PetscInt a = m.edgeVerts[2 * e], b = m.edgeVerts[2 * e + 1], mid = nV + e;
       next.clear();
-      for (const auto &t : cur) {
-        const auto ia = std::find(t.begin(), t.begin() + nb, a) - t.begin(), ib = std::find(t.begin(), t.begin() + nb, b) - t.begin();
+      for (const Piece &t : cur) {
+        const auto ia = std::find(t.v.begin(), t.v.begin() + nb, a) - t.v.begin(), ib = std::find(t.v.begin(), t.v.begin() + nb, b) - t.v.begin();
         if (ia == nb || ib == nb) {
           next.push_back(t);
           continue;
         }
-        next.push_back(t), next.back()[ia] = mid;
-        next.push_back(t), next.back()[ib] = mid;
+        const char on = t.on[ia] | t.on[ib];
+        next.push_back(t), next.back().v[ia] = mid, next.back().on[ia] = on;
+        next.push_back(t), next.back().v[ib] = mid, next.back().on[ib] = on;
       }
       cur.swap(next);
     }
-    for (auto &t : cur) {
-      if (Det(m, ch.x, t.data()) * sign < 0) std::swap(t[0], t[1]);
-      ch.verts.insert(ch.verts.end(), t.begin(), t.begin() + nb);
+    for (Piece &t : cur) {
+      if (Det(m, ch.x, t.v.data()) * sign < 0) std::swap(t.v[0], t.v[1]), std::swap(t.on[0], t.on[1]);
+      ch.verts.insert(ch.verts.end(), t.v.begin(), t.v.begin() + nb);
+      ch.on.insert(ch.on.end(), t.on.begin(), t.on.begin() + nb);
     }
     ch.start.push_back((PetscInt)(ch.verts.size() / nb));
   }
@@ -340,18 +387,6 @@ PetscErrorCode NumberVertices(DM dm, const Coarse &m, const Sharing &sh, const s
   PetscFunctionReturn(0);
 }
 
-// The vertex pairs of a simplex (a triangle's edges are the first three, in PETSc's cone order: edge k
-// runs from vertex k to k + 1) and the faces of PETSc's reference tetrahedron.
-const PetscInt kPair[6][2]    = {{0, 1}, {1, 2}, {2, 0}, {0, 3}, {1, 3}, {2, 3}};
-const PetscInt kRefFace[4][3] = {{0, 1, 2}, {0, 3, 1}, {0, 2, 3}, {2, 1, 3}};
-
-PetscInt PairIndex(PetscInt i, PetscInt j)
-{
-  for (PetscInt k = 0; k < 6; ++k)
-    if ((kPair[k][0] == i && kPair[k][1] == j) || (kPair[k][0] == j && kPair[k][1] == i)) return k;
-  return -1;
-}
-
 // The fine mesh of one rank. Points: the children (cells) in order, the vertices (numbered by increasing
 // global number), then in 3D the triangles, then the edges. Edges and triangles store their vertices by
 // increasing number.
@@ -362,92 +397,62 @@ struct Fine {
   std::vector<PetscInt> edgeCarrier, triCarrier; // the coarse point it lies in (-1: inside a cell)
   std::vector<PetscInt> childEdge, childTri;     // per child: the edge of pair k, the triangle of face k (3D)
   std::vector<PetscInt> parentOf;                // per child: the coarse cell (as c - cStart)
+  std::vector<PetscInt> childVerts;              // per child: its fine vertices (in Children::verts' order)
+  std::vector<PetscInt> triEdges;                // per triangle (a, b, c): its edges (a, b), (b, c), (c, a)
   PetscInt              Vertex(PetscInt i) const { return nc + i; }
   PetscInt              Tri(PetscInt j) const { return nc + nv + j; }
   PetscInt              Edge(PetscInt j) const { return nc + nv + nt + j; }
   PetscInt              End() const { return nc + nv + nt + ne; }
 };
 
-// The coarse face of cell c (3D) that the fine point with local vertex ids `ids` lies in, or -1 (the cell's
-// interior), for a point on no coarse edge: all its vertices lie on the face, a coarse vertex as one of the
-// face's vertices, a midpoint as the midpoint of one of its edges (both ends on the face).
-PetscInt FaceCarrier(const Coarse &m, PetscInt c, const PetscInt *ids, PetscInt n)
+// The coarse point that a fine edge or triangle of a child of coarse cell c lies in, from the parent's
+// vertices its vertices lie on (bits, see Children::on): two make the coarse edge between them (a fine
+// vertex is a coarse vertex or the midpoint of a coarse edge, so such a point lies on that edge), three
+// in 3D the face they span, else -1 (the cell's interior).
+PetscInt Carrier(const Coarse &m, PetscInt c, int on)
 {
-  const PetscInt nV = m.NumVertices();
-  for (PetscInt j = 0; j < 4; ++j) {
-    const PetscInt  F = m.cellFaces[4 * c + j], *fe = &m.faceEdges[3 * (F - m.fS)];
-    const PetscInt *a = &m.edgeVerts[2 * fe[0]], *b = &m.edgeVerts[2 * fe[1]];
-    const PetscInt  v[3] = {a[0], a[1], b[0] == a[0] || b[0] == a[1] ? b[1] : b[0]}; // the third: b's end off a
-    const auto      on   = [&](PetscInt x) { return x == v[0] || x == v[1] || x == v[2]; };
-    bool            all  = true;
-    for (PetscInt i = 0; i < n && all; ++i) all = ids[i] < nV ? on(ids[i]) : on(m.edgeVerts[2 * (ids[i] - nV)]) && on(m.edgeVerts[2 * (ids[i] - nV) + 1]);
-    if (all) return F;
-  }
+  if (kPairOf[on] >= 0) return m.eS + m.cellEdges[m.nce * c + kPairOf[on]];
+  if (m.dim == 3 && kOpposite[on] >= 0) return m.cellFaces[4 * c + kOpposite[on]];
   return -1;
 }
 
-// The coarse point that the fine edge between local vertex ids u and v (inside coarse cell c) lies in: its
-// lowest-dimensional edge or face containing it, or -1 (the cell's interior). A midpoint lies on its own edge only (one
-// bisection per edge), so an edge with a midpoint end lies on that edge or not on any coarse edge; an
-// edge between two coarse vertices is the unbisected coarse edge joining them. An edge on no coarse edge
-// lies inside the cell (2D), or on a face or inside (3D: FaceCarrier).
-PetscInt EdgeCarrier(const Coarse &m, PetscInt c, PetscInt u, PetscInt v)
-{
-  const PetscInt nV = m.NumVertices();
-  if (u >= nV || v >= nV) {
-    const PetscInt mid = u >= nV ? u : v, end = u >= nV ? v : u, e = mid - nV;
-    if (end == m.edgeVerts[2 * e] || end == m.edgeVerts[2 * e + 1]) return m.eS + e;
-  } else
-    for (PetscInt j = 0; j < m.nce; ++j) {
-      const PetscInt e = m.cellEdges[m.nce * c + j], a = m.edgeVerts[2 * e], b = m.edgeVerts[2 * e + 1];
-      if ((a == u && b == v) || (a == v && b == u)) return m.eS + e;
-    }
-  if (m.dim == 2) return -1;
-  const PetscInt ids[2] = {u, v};
-  return FaceCarrier(m, c, ids, 2);
-}
-
-// Numbers the distinct keys (sorted vertex sets, one per occurrence) in increasing order: idOf[occurrence]
-// = number, `verts` gets each key once, `first` an occurrence of each. A least-significant-digit radix
-// sort of (key, occurrence) records, one stable counting sort by each vertex from the last: linear in the
-// occurrences and reading the records in order, where sorting within each first vertex's bucket was most
-// of the refinement's time.
-template <size_t N>
-void Distinct(const std::vector<std::array<PetscInt, N>> &key, PetscInt numVertices, std::vector<PetscInt> &idOf, std::vector<PetscInt> &verts, std::vector<PetscInt> &first)
+// Numbers the distinct keys (pairs (bucket, rest), one per occurrence o < n, from keyOf(o)) in increasing
+// order: idOf[occurrence] = number, `keys` gets each key once (2 numbers), `first` its first occurrence.
+// The occurrences are bucketed (a counting sort) and each bucket, a few dozen, sorted by the rest: two
+// passes over the occurrences, where a radix sort by every vertex of a key moved all of them once per
+// vertex.
+template <class KeyOf>
+void Distinct(PetscInt n, PetscInt numBuckets, const KeyOf &keyOf, std::vector<PetscInt> &idOf, std::vector<PetscInt> &keys, std::vector<PetscInt> &first)
 {
   struct Record {
-    std::array<PetscInt, N> k;
-    PetscInt                o;
+    PetscInt rest, o;
+    bool     operator<(const Record &r) const { return rest != r.rest ? rest < r.rest : o < r.o; }
   };
-  const PetscInt        n = (PetscInt)key.size();
-  std::vector<PetscInt> count(numVertices + 1);
-  std::vector<Record>   rec(n), next(n);
-  for (PetscInt o = 0; o < n; ++o) rec[o] = {key[o], o};
-  for (size_t pos = N; pos-- > 0;) {
-    std::fill(count.begin(), count.end(), 0);
-    for (const Record &r : rec) ++count[r.k[pos] + 1];
-    std::partial_sum(count.begin(), count.end(), count.begin());
-    for (const Record &r : rec) next[count[r.k[pos]]++] = r;
-    rec.swap(next);
+  std::vector<PetscInt> start(numBuckets + 1, 0);
+  for (PetscInt o = 0; o < n; ++o) ++start[keyOf(o)[0] + 1];
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  std::vector<Record> rec(n);
+  for (PetscInt o = 0; o < n; ++o) {
+    const std::array<PetscInt, 2> k = keyOf(o);
+    rec[start[k[0]]++]              = {k[1], o};
   }
-  const auto same = [](const Record &x, const Record &y) {
-    for (size_t i = 0; i < N; ++i)
-      if (x.k[i] != y.k[i]) return false;
-    return true;
-  };
-  idOf.assign(n, -1);
-  verts.resize(N * n), first.resize(n);
+  // start[b] is now where bucket b + 1 starts.
+  idOf.resize(n);
+  keys.clear(), first.clear();
+  keys.reserve(2 * n), first.reserve(n); // pages untouched beyond the distinct keys
   PetscInt id = -1;
-  for (PetscInt i = 0; i < n; ++i) {
-    const Record &r = rec[i];
-    if (i == 0 || !same(r, rec[i - 1])) {
-      ++id;
-      for (size_t k = 0; k < N; ++k) verts[N * id + k] = r.k[k];
-      first[id] = r.o;
+  for (PetscInt b = 0, lo = 0; b < numBuckets; lo = start[b++]) {
+    Record *r0 = rec.data() + lo, *r1 = rec.data() + start[b];
+    std::sort(r0, r1);
+    for (const Record *r = r0; r < r1; ++r) {
+      if (r == r0 || r->rest != r[-1].rest) {
+        ++id;
+        keys.push_back(b), keys.push_back(r->rest);
+        first.push_back(r->o);
+      }
+      idOf[r->o] = id;
     }
-    idOf[r.o] = id;
   }
-  verts.resize(N * (id + 1)), first.resize(id + 1);
 }
 
 // The fine points of one rank: vertices, then the distinct edges and triangles of the children, each with
@@ -475,115 +480,135 @@ void FinePoints(const Coarse &m, const Children &ch, const std::vector<PetscInt>
   f.parentOf.resize(f.nc);
   for (PetscInt c = 0; c < m.NumCells(); ++c)
     for (PetscInt k = ch.start[c]; k < ch.start[c + 1]; ++k) f.parentOf[k] = c;
-  const auto fineVertex = [&](PetscInt t, PetscInt i) { return f.vertexOf[ch.verts[nb * t + i]]; };
-  std::vector<PetscInt> first, ids(3);
-  {
-    std::vector<std::array<PetscInt, 2>> key(nce * f.nc);
-    for (PetscInt t = 0; t < f.nc; ++t)
-      for (PetscInt k = 0; k < nce; ++k) {
-        const PetscInt a = fineVertex(t, kPair[k][0]), b = fineVertex(t, kPair[k][1]);
-        key[nce * t + k] = {std::min(a, b), std::max(a, b)};
-      }
-    Distinct<2>(key, f.nv, f.childEdge, f.edgeVerts, first);
-  }
+  f.childVerts.resize(ch.verts.size());
+  for (size_t i = 0; i < ch.verts.size(); ++i) f.childVerts[i] = f.vertexOf[ch.verts[i]];
+  const PetscInt *cv = f.childVerts.data();
+  const char     *on = ch.on.data();
+  std::vector<PetscInt> first;
+  // Edges (a, b), a < b, bucketed by a.
+  Distinct(
+    nce * f.nc, f.nv,
+    [&](PetscInt o) {
+      const PetscInt *v = cv + nb * (o / nce), *p = kPair[o % nce];
+      return std::array<PetscInt, 2>{std::min(v[p[0]], v[p[1]]), std::max(v[p[0]], v[p[1]])};
+    },
+    f.childEdge, f.edgeVerts, first);
   f.ne = (PetscInt)first.size();
   f.edgeCarrier.resize(f.ne);
-  for (PetscInt j = 0; j < f.ne; ++j) f.edgeCarrier[j] = EdgeCarrier(m, f.parentOf[first[j] / nce], f.vertexId[f.edgeVerts[2 * j]], f.vertexId[f.edgeVerts[2 * j + 1]]);
-  if (m.dim == 2) return;
-  {
-    std::vector<std::array<PetscInt, 3>> key(4 * f.nc);
-    for (PetscInt t = 0; t < f.nc; ++t)
-      for (PetscInt k = 0; k < 4; ++k) {
-        key[4 * t + k] = {fineVertex(t, kRefFace[k][0]), fineVertex(t, kRefFace[k][1]), fineVertex(t, kRefFace[k][2])};
-        std::sort(key[4 * t + k].begin(), key[4 * t + k].end());
-      }
-    Distinct<3>(key, f.nv, f.childTri, f.triVerts, first);
+  for (PetscInt o = 0; o < nce * f.nc; ++o) {
+    const PetscInt j = f.childEdge[o], t = o / nce, *p = kPair[o % nce];
+    if (first[j] == o) f.edgeCarrier[j] = Carrier(m, f.parentOf[t], on[nb * t + p[0]] | on[nb * t + p[1]]);
   }
+  if (m.dim == 2) return;
+  // Triangles (a, b, c), a < b < c, bucketed by their edge (a, b): the edges are numbered in the order of
+  // (a, b), so the order of (edge, c) is that of (a, b, c), and the buckets are small.
+  std::vector<PetscInt> edgeAndTop;
+  Distinct(
+    4 * f.nc, f.ne,
+    [&](PetscInt o) {
+      const PetscInt  t = o / 4, *v = cv + 4 * t, *r = kRefFace[o % 4];
+      const PetscInt top = v[r[0]] > v[r[1]] ? (v[r[0]] > v[r[2]] ? 0 : 2) : (v[r[1]] > v[r[2]] ? 1 : 2);
+      const int      low = (1 << r[0] | 1 << r[1] | 1 << r[2]) & ~(1 << r[top]);
+      return std::array<PetscInt, 2>{f.childEdge[6 * t + kPairOf[low]], v[r[top]]};
+    },
+    f.childTri, edgeAndTop, first);
   f.nt = (PetscInt)first.size();
-  f.triCarrier.resize(f.nt);
+  f.triVerts.resize(3 * f.nt);
   for (PetscInt j = 0; j < f.nt; ++j) {
-    for (PetscInt i = 0; i < 3; ++i) ids[i] = f.vertexId[f.triVerts[3 * j + i]];
-    f.triCarrier[j] = FaceCarrier(m, f.parentOf[first[j] / 4], ids.data(), 3); // a triangle lies on no edge
+    const PetscInt e = edgeAndTop[2 * j];
+    f.triVerts[3 * j] = f.edgeVerts[2 * e], f.triVerts[3 * j + 1] = f.edgeVerts[2 * e + 1], f.triVerts[3 * j + 2] = edgeAndTop[2 * j + 1];
+  }
+  // The carrier and the edges, from the triangle's first occurrence in a child (in the children's order,
+  // which reads them in order).
+  f.triCarrier.resize(f.nt);
+  f.triEdges.resize(3 * f.nt);
+  for (PetscInt o = 0; o < 4 * f.nc; ++o) {
+    const PetscInt j = f.childTri[o];
+    if (first[j] != o) continue;
+    const PetscInt t = o / 4, *r = kRefFace[o % 4], *v = cv + 4 * t, *abc = &f.triVerts[3 * j];
+    f.triCarrier[j] = Carrier(m, f.parentOf[t], on[4 * t + r[0]] | on[4 * t + r[1]] | on[4 * t + r[2]]);
+    int bit[3]; // of a, b, c: their vertex in the child
+    for (PetscInt i = 0; i < 3; ++i) bit[v[r[i]] == abc[0] ? 0 : v[r[i]] == abc[1] ? 1 : 2] = 1 << r[i];
+    for (PetscInt e = 0; e < 3; ++e) f.triEdges[3 * j + e] = f.childEdge[6 * t + kPairOf[bit[e] | bit[(e + 1) % 3]]];
   }
 }
 
-// Cones and orientations: an edge from its lower to its higher vertex; a triangle (a, b, c), a < b < c,
-// with edges (a, b), (b, c), (c, a), the last reversed; a child's faces in PETSc's reference order. In the
-// chart's layout (cells, vertices without cones, triangles, edges): point p's cone starts at the sum of
-// the cone sizes before it.
-PetscErrorCode MakeCones(const Children &ch, const Fine &f, std::vector<PetscInt> &cones, std::vector<PetscInt> &ornts, PetscInt &triStart, PetscInt &edgeStart)
+// The cones and orientations of the children: their faces in PETSc's reference order.
+PetscErrorCode CellCones(const Fine &f, PetscInt *cones, PetscInt *ornts)
 {
-  const PetscInt nb = ch.nv;
+  const PetscInt nb = f.dim + 1;
   PetscFunctionBeginUser;
-  triStart = nb * f.nc, edgeStart = triStart + 3 * f.nt;
-  cones.resize(edgeStart + 2 * f.ne);
-  ornts.assign(cones.size(), 0);
-  for (PetscInt j = 0; j < f.ne; ++j) {
-    PetscInt *cone = &cones[edgeStart + 2 * j];
-    cone[0] = f.Vertex(f.edgeVerts[2 * j]), cone[1] = f.Vertex(f.edgeVerts[2 * j + 1]);
+  // A child's face k lists the triangle's vertices (a < b < c) in some order: the orientation depends only
+  // on which of them comes first and second (code 3 * rank of the first + rank of the second).
+  PetscInt orientation[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+  if (f.dim == 3) {
+    const PetscInt sorted[3] = {0, 1, 2};
+    PetscInt       perm[3]   = {0, 1, 2};
+    do PetscCall(DMPolytopeGetVertexOrientation(DM_POLYTOPE_TRIANGLE, sorted, perm, &orientation[3 * perm[0] + perm[1]]));
+    while (std::next_permutation(perm, perm + 3));
   }
-  std::vector<char> done(f.nt, 0);
   for (PetscInt t = 0; t < f.nc; ++t) {
-    PetscInt  v[4], *cone = &cones[nb * t], *ornt = &ornts[nb * t];
-    for (PetscInt i = 0; i < nb; ++i) v[i] = f.vertexOf[ch.verts[nb * t + i]];
-    if (f.dim == 2) {
+    PetscInt       *cone = cones + nb * t, *ornt = ornts + nb * t;
+    const PetscInt *v    = &f.childVerts[nb * t];
+    if (f.dim == 2)
       for (PetscInt k = 0; k < 3; ++k) {
         cone[k] = f.Edge(f.childEdge[3 * t + k]);
         ornt[k] = v[kPair[k][0]] < v[kPair[k][1]] ? 0 : -1;
       }
-      continue;
-    }
-    for (PetscInt k = 0; k < 4; ++k) {
-      const PetscInt  tri = f.childTri[4 * t + k], want[3] = {v[kRefFace[k][0]], v[kRefFace[k][1]], v[kRefFace[k][2]]};
-      const PetscInt *has = &f.triVerts[3 * tri];
-      cone[k]             = f.Tri(tri);
-      PetscCall(DMPolytopeGetVertexOrientation(DM_POLYTOPE_TRIANGLE, has, want, &ornt[k]));
-      if (done[tri]) continue;
-      done[tri]       = 1;
-      PetscInt *tcone = &cones[triStart + 3 * tri], *tornt = &ornts[triStart + 3 * tri];
-      for (PetscInt e = 0; e < 3; ++e) {
-        const PetscInt a = has[e], b = has[(e + 1) % 3];
-        const PetscInt ia = std::find(v, v + 4, a) - v, ib = std::find(v, v + 4, b) - v;
-        tcone[e] = f.Edge(f.childEdge[6 * t + PairIndex(ia, ib)]);
-        tornt[e] = e == 2 ? -1 : 0;
+    else
+      for (PetscInt k = 0; k < 4; ++k) {
+        const PetscInt  tri = f.childTri[4 * t + k], *r = kRefFace[k];
+        const PetscInt *has  = &f.triVerts[3 * tri];
+        const auto      rank = [has](PetscInt x) { return x == has[0] ? 0 : x == has[1] ? 1 : 2; };
+        cone[k]              = f.Tri(tri);
+        ornt[k]              = orientation[3 * rank(v[r[0]]) + rank(v[r[1]])];
       }
-    }
   }
   PetscFunctionReturn(0);
 }
 
-// The plex's cones, supports and depth strata, written straight into its arrays: what DMPlexSetCone,
-// DMPlexSymmetrize and DMPlexStratify make, with the same supports in the same order (by increasing point,
-// as DMPlexSymmetrize lists them), but without their calls and checks per point and cone entry, which made
-// them half of the refinement. The depth of every point is known from its stratum in the chart.
-PetscErrorCode BuildPlex(DM dm, const Children &ch, const Fine &f)
+// The plex's cones, supports and depth strata, written straight into its arrays and sections: what
+// DMPlexSetConeSize, DMPlexSetCone, DMPlexSymmetrize and DMPlexStratify make, with the same supports in
+// the same order (by increasing point, as DMPlexSymmetrize lists them), but without their calls and checks
+// per point and cone entry, which made them most of the refinement. Cones: an edge from its lower to its
+// higher vertex; a triangle (a, b, c), a < b < c, with edges (a, b), (b, c), (c, a), the last reversed;
+// a child's faces in PETSc's reference order. The depth of every point is known from its stratum in the
+// chart (cells, vertices, triangles, edges).
+PetscErrorCode BuildPlex(DM dm, const Fine &f)
 {
-  const PetscInt        nb = ch.nv, end = f.End();
-  std::vector<PetscInt> cones, ornts, count(end + 1, 0);
-  PetscInt              triStart, edgeStart, size;
+  const PetscInt nb = f.dim + 1, end = f.End();
+  PetscInt       size, supportSize;
   PetscFunctionBeginUser;
-  PetscCall(MakeCones(ch, f, cones, ornts, triStart, edgeStart));
-  const auto coneSize = [&](PetscInt p) { return p < f.nc ? nb : p < f.Tri(0) ? 0 : p < f.Edge(0) ? 3 : 2; };
-  for (PetscInt q : cones) ++count[q + 1];
   PetscCall(DMPlexSetChart(dm, 0, end));
-  for (PetscInt p = 0; p < end; ++p) {
-    PetscCall(DMPlexSetConeSize(dm, p, coneSize(p)));
-    PetscCall(DMPlexSetSupportSize(dm, p, count[p + 1]));
-  }
-  PetscCall(DMSetUp(dm)); // allocates the cones and supports
-  DM_Plex *mesh = (DM_Plex *)dm->data;
-  PetscCall(PetscSectionGetStorageSize(mesh->coneSection, &size));
-  PetscCheck(size == (PetscInt)cones.size(), PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: %" PetscInt_FMT " cone entries, not %zu", size, cones.size());
-  std::copy(cones.begin(), cones.end(), mesh->cones);
-  std::copy(ornts.begin(), ornts.end(), mesh->coneOrientations);
-  std::partial_sum(count.begin(), count.end(), count.begin()); // count[q]: where q's support starts
-  if (!cones.empty()) {
-    PetscInt off;
-    PetscCall(PetscSectionGetOffset(mesh->supportSection, end - 1, &off));
-    PetscCheck(off == count[end - 1], PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: unexpected support layout");
-  }
-  for (PetscInt p = 0, at = 0; p < end; ++p)
-    for (PetscInt k = coneSize(p); k > 0; --k, ++at) mesh->supports[count[cones[at]]++] = p;
+  DM_Plex     *mesh = (DM_Plex *)dm->data;
+  PetscSection cs = mesh->coneSection, ss = mesh->supportSection;
+  PetscCheck(cs->pStart == 0 && ss->pStart == 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: unexpected chart");
+  const auto coneSize = [&](PetscInt p) { return p < f.nc ? nb : p < f.Tri(0) ? 0 : p < f.Edge(0) ? 3 : 2; };
+  for (PetscInt p = 0; p < end; ++p) cs->atlasDof[p] = coneSize(p);
+  // The supports' sizes: every point once in the cone of each point that has it.
+  PetscInt *count = ss->atlasDof;
+  std::fill(count, count + end, 0);
+  for (PetscInt k : f.dim == 2 ? f.childEdge : f.childTri) ++count[f.dim == 2 ? f.Edge(k) : f.Tri(k)];
+  for (PetscInt k : f.triEdges) ++count[f.Edge(k)];
+  for (PetscInt k : f.edgeVerts) ++count[f.Vertex(k)];
+  cs->maxDof = ss->maxDof = PETSC_MIN_INT; // recomputed when asked for (see PetscSectionInvalidateMaxDof_Internal)
+  PetscCall(DMSetUp(dm)); // sets up the sections, allocates the cones and supports
+  PetscCall(PetscSectionGetStorageSize(cs, &size));
+  PetscCall(PetscSectionGetStorageSize(ss, &supportSize));
+  PetscCheck(size == nb * f.nc + 3 * f.nt + 2 * f.ne && supportSize == size && (!size || mesh->supports), PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: %" PetscInt_FMT " cone and %" PetscInt_FMT " support entries", size, supportSize);
+  PetscCall(CellCones(f, mesh->cones, mesh->coneOrientations));
+  PetscInt *tcone = mesh->cones + nb * f.nc, *tornt = mesh->coneOrientations + nb * f.nc;
+  for (PetscInt j = 0; j < f.nt; ++j)
+    for (PetscInt e = 0; e < 3; ++e) tcone[3 * j + e] = f.Edge(f.triEdges[3 * j + e]), tornt[3 * j + e] = e == 2 ? -1 : 0;
+  PetscInt *econe = tcone + 3 * f.nt, *eornt = tornt + 3 * f.nt;
+  for (PetscInt j = 0; j < 2 * f.ne; ++j) econe[j] = f.Vertex(f.edgeVerts[j]), eornt[j] = 0;
+  // Each point's supports by increasing point; the sizes count up again from 0 as the places are filled.
+  std::fill(count, count + end, 0);
+  for (PetscInt p = 0, i = 0; p < end; ++p)
+    for (PetscInt k = coneSize(p); k > 0; --k, ++i) {
+      const PetscInt q = mesh->cones[i];
+      mesh->supports[ss->atlasOff[q] + count[q]++] = p;
+    }
   // Depth strata, as DMPlexStratify makes them (a stride set per depth; on every rank every depth).
   DMLabel        depth;
   const PetscInt range[4][2] = {{f.Vertex(0), f.Vertex(f.nv)}, {f.Edge(0), end}, {f.Tri(0), f.Tri(f.nt)}, {0, f.nc}};
@@ -708,15 +733,29 @@ PetscErrorCode CarryLabels(DM coarse, DM fine, const Coarse &m, const Fine &f)
   for (PetscInt c : f.parentOf) ++children[c + 1];
   std::partial_sum(children.begin(), children.end(), children.begin());
   PetscFunctionBeginUser;
+  // Each stratum is made at once from its sorted points (a general index set), not point by point; the
+  // children of coarse cells in increasing order come in increasing order.
   PetscCall(ForEachLabelStratum(coarse, fine, [&](DMLabel label, PetscInt value, const PetscInt *points, PetscInt n) -> PetscErrorCode {
+    PetscInt  count = 0, *pts;
+    IS        is;
     PetscFunctionBeginUser;
     for (PetscInt i = 0; i < n; ++i) {
       const PetscInt q = points[i];
-      if (q >= m.cS && q < m.cE)
-        for (PetscInt t = children[q - m.cS]; t < children[q - m.cS + 1]; ++t) PetscCall(DMLabelSetValue(label, t, value));
-      if (q >= m.fS && q < m.fE)
-        for (PetscInt k = start[q - m.fS]; k < start[q - m.fS + 1]; ++k) PetscCall(DMLabelSetValue(label, faces[k], value));
+      if (q >= m.cS && q < m.cE) count += children[q - m.cS + 1] - children[q - m.cS];
+      if (q >= m.fS && q < m.fE) count += start[q - m.fS + 1] - start[q - m.fS];
     }
+    PetscCall(PetscMalloc1(count, &pts));
+    PetscInt *at = pts;
+    for (PetscInt i = 0; i < n; ++i) {
+      const PetscInt q = points[i];
+      if (q >= m.cS && q < m.cE)
+        for (PetscInt t = children[q - m.cS]; t < children[q - m.cS + 1]; ++t) *at++ = t;
+      if (q >= m.fS && q < m.fE) at = std::copy(faces.begin() + start[q - m.fS], faces.begin() + start[q - m.fS + 1], at);
+    }
+    if (!std::is_sorted(pts, pts + count)) std::sort(pts, pts + count);
+    PetscCall(ISCreateGeneral(PETSC_COMM_SELF, count, pts, PETSC_OWN_POINTER, &is));
+    PetscCall(DMLabelSetStratumIS(label, value, is));
+    PetscCall(ISDestroy(&is));
     PetscFunctionReturn(0);
   }));
   PetscFunctionReturn(0);
@@ -735,6 +774,7 @@ PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked,
   PetscCall(ReadCoarse(coarse, m));
   PetscCheck((PetscInt)marked.size() == m.NumCells(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "RefineMarkedBisection: %zu marks for %" PetscInt_FMT " cells", marked.size(), m.NumCells());
   PetscCall(GetSharing(coarse, m, sh));
+  EdgeOrder::Lengths(m);
   const EdgeOrder   before(m);
   std::vector<char> mark;
   PetscCall(CloseMarks(PetscObjectComm((PetscObject)coarse), m, sh, before, marked, allEdges, mark));
@@ -746,7 +786,7 @@ PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked,
   PetscCall(DMCreate(PetscObjectComm((PetscObject)coarse), &dm));
   PetscCall(DMSetType(dm, DMPLEX));
   PetscCall(DMSetDimension(dm, m.dim));
-  PetscCall(BuildPlex(dm, ch, f));
+  PetscCall(BuildPlex(dm, f));
   std::vector<CellTypeStratum> types = {{m.dim == 2 ? DM_POLYTOPE_TRIANGLE : DM_POLYTOPE_TETRAHEDRON, 0, f.nc}, {DM_POLYTOPE_POINT, f.Vertex(0), f.Vertex(f.nv)}, {DM_POLYTOPE_SEGMENT, f.Edge(0), f.End()}};
   if (m.dim == 3) types.push_back({DM_POLYTOPE_TRIANGLE, f.Tri(0), f.Tri(f.nt)});
   PetscCall(SetCellTypeStrata(dm, types));

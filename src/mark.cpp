@@ -9,67 +9,74 @@ namespace signorini {
 namespace {
 // Values within this relative distance below the threshold count as equal to it.
 constexpr PetscReal kTieSlack = 1e-6;
+constexpr PetscReal kInf      = std::numeric_limits<PetscReal>::infinity();
 
-// Global sum of the values >= t.
-PetscErrorCode SumAbove(MPI_Comm comm, const std::vector<PetscReal> &v, PetscReal t, PetscReal *sum)
+// The global min and max of a set of values ({+inf, -inf} if empty), and the min and -max of this rank's
+// values x in [lo, hi) folded into r (r[0] = min, r[1] = -max, so that one MPI_MIN reduces both).
+struct Range {
+  PetscReal min, max;
+};
+inline void Fold(PetscReal *r, PetscReal x, bool in)
 {
-  PetscReal s = 0;
-  PetscFunctionBeginUser;
-  for (PetscReal x : v)
-    if (x >= t) s += x;
-  PetscCallMPI(MPI_Allreduce(&s, sum, 1, MPIU_REAL, MPI_SUM, comm));
-  PetscFunctionReturn(0);
+  // Branch-free: the tests of an indicator against a threshold are unpredictable.
+  r[0] = std::min(r[0], in ? x : kInf);
+  r[1] = std::min(r[1], in ? -x : kInf);
 }
 
-// Global min and max of the values in [lo, hi) (+inf and -inf if none).
-PetscErrorCode RangeIn(MPI_Comm comm, const std::vector<PetscReal> &v, PetscReal lo, PetscReal hi, PetscReal *min, PetscReal *max)
+// One pass over the values for the search below: the global sum of the values >= mid (added in the
+// values' order, as any pass would: the same sum bit for bit) and the global ranges of the values in
+// [lo, mid) and in [mid, hi), the two halves the search goes on with.
+PetscErrorCode Split(MPI_Comm comm, const std::vector<PetscReal> &v, PetscReal lo, PetscReal mid, PetscReal hi, PetscReal *sum, Range *below, Range *above)
 {
-  PetscReal m[2] = {std::numeric_limits<PetscReal>::infinity(), std::numeric_limits<PetscReal>::infinity()}; // min, -max
+  PetscReal s = 0, r[4] = {kInf, kInf, kInf, kInf};
   PetscFunctionBeginUser;
-  for (PetscReal x : v)
-    if (x >= lo && x < hi) m[0] = std::min(m[0], x), m[1] = std::min(m[1], -x);
-  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, m, 2, MPIU_REAL, MPI_MIN, comm));
-  *min = m[0], *max = -m[1];
+  for (PetscReal x : v) {
+    const bool up = x >= mid;
+    s += up ? x : 0; // adding +0 leaves s unchanged
+    Fold(r, x, x >= lo && !up);
+    Fold(r + 2, x, up && x < hi);
+  }
+  PetscCallMPI(MPI_Allreduce(&s, sum, 1, MPIU_REAL, MPI_SUM, comm));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, r, 4, MPIU_REAL, MPI_MIN, comm));
+  *below = {r[0], -r[1]}, *above = {r[2], -r[3]};
   PetscFunctionReturn(0);
 }
 } // namespace
 
 PetscErrorCode MarkDoerfler(MPI_Comm comm, const std::vector<PetscReal> &eta2, PetscReal theta, std::vector<char> &marked, PetscInt *count)
 {
-  const PetscReal inf = std::numeric_limits<PetscReal>::infinity();
-  PetscReal       total, lo, hi, min, max, target;
+  PetscReal total, target;
+  Range     all, none;
   PetscFunctionBeginUser;
   PetscCheck(theta > 0 && theta <= 1, comm, PETSC_ERR_ARG_OUTOFRANGE, "Doerfler parameter %g not in (0, 1]", (double)theta);
   marked.assign(eta2.size(), 0);
-  // The positive indicators span [min, max].
-  PetscCall(RangeIn(comm, eta2, std::numeric_limits<PetscReal>::min(), inf, &min, &max));
-  PetscCall(SumAbove(comm, eta2, min, &total));
-  PetscReal t = inf; // the threshold; inf: nothing to mark
+  // The positive indicators span [min, max] and add up to the total (every positive value is >= min).
+  PetscCall(Split(comm, eta2, 0, std::numeric_limits<PetscReal>::min(), kInf, &total, &none, &all));
+  PetscReal t = kInf; // the threshold; inf: nothing to mark
   // theta = 1 asks for every cell with a positive indicator. The sums would decide it at round-off: the
   // smallest indicators may lie below the round-off of the total, and differently on other rank counts.
-  if (total > 0 && theta == 1) t = min;
+  if (total > 0 && theta == 1) t = all.min;
   else if (total > 0) {
     target = theta * total;
     // S(x) = sum of the values >= x falls as x grows; S(lo) >= target > S(hi) throughout. t is the
     // smallest value in [lo, hi) once all of them lie within kTieSlack of each other: every value >= t
-    // must then be marked, and marking it reaches the target.
-    lo = min, hi = inf;
-    PetscReal s;
-    PetscCall(SumAbove(comm, eta2, max, &s));
-    if (s >= target) lo = max;
+    // must then be marked, and marking it reaches the target. Each step's pass also finds the range of
+    // the values in either half, so one pass per step suffices.
+    PetscReal lo = all.min, hi = kInf, s;
+    Range     in = all, below, above; // in: the values in [lo, hi)
+    PetscCall(Split(comm, eta2, lo, all.max, hi, &s, &below, &above));
+    if (s >= target) lo = all.max, in = above;
     for (;;) {
-      PetscReal a, b;
-      PetscCall(RangeIn(comm, eta2, lo, hi, &a, &b));
-      if (b <= a * (1 + kTieSlack)) {
-        t = a;
+      if (in.max <= in.min * (1 + kTieSlack)) {
+        t = in.min;
         break;
       }
       // Bisect geometrically between the extreme values still in question: the indicators span many
       // orders of magnitude, and each step at least halves their logarithmic spread.
-      const PetscReal mid = std::sqrt(a) * std::sqrt(b);
-      PetscCall(SumAbove(comm, eta2, mid, &s));
-      if (s >= target) lo = mid;
-      else hi = mid;
+      const PetscReal mid = std::sqrt(in.min) * std::sqrt(in.max);
+      PetscCall(Split(comm, eta2, lo, mid, hi, &s, &below, &above));
+      if (s >= target) lo = mid, in = above;
+      else hi = mid, in = below;
     }
   }
   PetscInt n = 0;

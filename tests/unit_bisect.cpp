@@ -24,6 +24,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <ctime>
 #include <functional>
 #include <string>
 #include <vector>
@@ -435,28 +436,38 @@ static PetscErrorCode TestCase(unit::Checker &ck, const Case &k, PetscInt steps)
   PetscFunctionReturn(0);
 }
 
-// -bisect_time_faces n: one refinement of the cells with centroid x < 0.1 (10 %) of a box of 6 n^3 tetrahedra.
+// -bisect_time_faces n: one refinement of the cells with centroid x < fraction (-bisect_time_fraction,
+// 0.1 by default) of a box of 6 n^3 tetrahedra (-bisect_time_dim 2: 2 n^2 triangles), by their longest
+// edges or (-bisect_time_all) all edges.
 static PetscErrorCode Time(PetscInt n)
 {
+  PetscReal fraction = 0.1;
+  PetscBool all      = PETSC_FALSE;
   MeshOptions o;
   DM          dm, fine;
   PetscFunctionBeginUser;
-  o.dim = 3, o.faces[0] = o.faces[1] = o.faces[2] = n, o.coarsen = false;
+  PetscCall(PetscOptionsGetReal(NULL, NULL, "-bisect_time_fraction", &fraction, NULL));
+  PetscCall(PetscOptionsGetBool(NULL, NULL, "-bisect_time_all", &all, NULL));
+  PetscInt dim = 3;
+  PetscCall(PetscOptionsGetInt(NULL, NULL, "-bisect_time_dim", &dim, NULL));
+  o.dim = dim, o.faces[0] = o.faces[1] = o.faces[2] = n, o.coarsen = false;
   PetscCall(CreateMesh(PETSC_COMM_WORLD, o, &dm));
   std::vector<char> marked;
-  PetscCall(Mark(dm, [](const PetscReal *x, const std::vector<std::array<double, 3>> &) { return x[0] < 0.1; }, marked));
+  PetscCall(Mark(dm, [&](const PetscReal *x, const std::vector<std::array<double, 3>> &) { return x[0] < fraction; }, marked));
   PetscLogDouble t0;
   double         seconds;
+  std::clock_t   cpu0 = std::clock(); // the process's CPU time: wall time is noisy on a shared machine
   PetscCall(PetscTime(&t0));
-  PetscCall(RefineMarkedBisection(dm, marked, &fine, NULL));
+  PetscCall(RefineMarkedBisection(dm, marked, &fine, NULL, all));
   PetscCall(SecondsSince(PETSC_COMM_WORLD, t0, &seconds));
+  const double cpu = (double)(std::clock() - cpu0) / CLOCKS_PER_SEC;
   PetscInt counts[3] = {0, 0, 0}, cS, cE, fS, fE;
   PetscCall(DMPlexGetHeightStratum(dm, 0, &cS, &cE));
   PetscCall(DMPlexGetHeightStratum(fine, 0, &fS, &fE));
   counts[0] = cE - cS, counts[1] = fE - fS;
   for (char m : marked) counts[2] += m;
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, counts, 3, MPIU_INT, MPI_SUM, PETSC_COMM_WORLD));
-  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "bisection: %d cells, %d marked, %d after: %.2f s\n", (int)counts[0], (int)counts[2], (int)counts[1], seconds));
+  PetscCall(PetscPrintf(PETSC_COMM_WORLD, "bisection: %d cells, %d marked, %d after: %.3f s (CPU %.3f s on rank 0)\n", (int)counts[0], (int)counts[2], (int)counts[1], seconds, cpu));
   PetscCall(DMDestroy(&fine));
   PetscCall(DMDestroy(&dm));
   PetscFunctionReturn(0);
