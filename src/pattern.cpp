@@ -75,156 +75,193 @@ static PetscErrorCode ExchangeRecords(MPI_Comm comm, const std::vector<std::vect
   PetscFunctionReturn(0);
 }
 
-// The rows this rank owns as lists of global columns (compressed rows over the owned rows), and the
-// global index of every local DOF.
-struct Rows {
-  std::vector<PetscInt> global, ranges, offset, cols;
+// The owned range and the global index of every local DOF.
+struct Numbering {
+  std::vector<PetscInt> global, ranges;
   PetscInt              rstart = 0, rend = 0;
   bool                  Owned(PetscInt g) const { return g >= rstart && g < rend; }
 };
 
-// Appends the columns of the received records (row, ncols, cols...) to their rows; `next` is the next free
-// position of each owned row.
-static void AppendReceived(const std::vector<PetscInt> &received, Rows &rows, std::vector<PetscInt> &next)
+// The columns other ranks' cells give the rows this rank owns: each rank sends the records (row, ncols,
+// cols...) of the rows it does not own to their owners. Returned as compressed rows over the owned rows.
+struct Extra {
+  std::vector<PetscInt> offset, cols;
+};
+
+static PetscErrorCode ExchangeExtra(MPI_Comm comm, PetscInt numOwned, const Numbering &num, const std::vector<std::vector<PetscInt>> &send, Extra &extra)
 {
+  std::vector<PetscInt> received;
+  PetscFunctionBeginUser;
+  PetscCall(ExchangeRecords(comm, send, received));
+  extra.offset.assign(numOwned + 1, 0);
+  for (size_t k = 0; k < received.size(); k += 2 + received[k + 1]) extra.offset[received[k] - num.rstart + 1] += received[k + 1];
+  for (PetscInt i = 0; i < numOwned; ++i) extra.offset[i + 1] += extra.offset[i];
+  extra.cols.resize(extra.offset[numOwned]);
+  std::vector<PetscInt> next(extra.offset.begin(), extra.offset.end() - 1);
   for (size_t k = 0; k < received.size(); k += 2 + received[k + 1])
-    for (PetscInt j = 0; j < received[k + 1]; ++j) rows.cols[next[received[k] - rows.rstart]++] = received[k + 2 + j];
+    for (PetscInt j = 0; j < received[k + 1]; ++j) extra.cols[next[received[k] - num.rstart]++] = received[k + 2 + j];
+  PetscFunctionReturn(0);
 }
 
+// Sorts a row's few columns without the branches std::sort mispredicts on random data (they made it the
+// largest cost of the pattern): odd-even transposition with min/max on values held in registers.
+template <int N>
+static void SortFew(PetscInt *a)
+{
+  PetscInt v[N];
+#pragma GCC unroll 8
+  for (int k = 0; k < N; ++k) v[k] = a[k];
+#pragma GCC unroll 8
+  for (int round = 0; round < N; ++round)
+#pragma GCC unroll 8
+    for (int k = round & 1; k + 1 < N; k += 2) {
+      const PetscInt lo = std::min(v[k], v[k + 1]), hi = std::max(v[k], v[k + 1]);
+      v[k] = lo, v[k + 1] = hi;
+    }
+#pragma GCC unroll 8
+  for (int k = 0; k < N; ++k) a[k] = v[k];
+}
+
+static void SortRow(PetscInt *a, PetscInt n)
+{
+  switch (n) {
+  case 0:
+  case 1: return;
+  case 2: return SortFew<2>(a);
+  case 3: return SortFew<3>(a);
+  case 4: return SortFew<4>(a);
+  case 5: return SortFew<5>(a);
+  case 6: return SortFew<6>(a);
+  case 7: return SortFew<7>(a);
+  case 8: return SortFew<8>(a);
+  default: return std::sort(a, a + n);
+  }
+}
+
+// Calls row(i, cols, n) for every owned row i in order, cols its n distinct global columns, sorted.
 // Crouzeix-Raviart: a face lies in at most two cells, which share no other face, so the columns of a row
 // are the row itself and the other faces of its cells, all distinct: 1 + d * (its cells, on all ranks),
-// read off the cell table without the cells-of-each-DOF table and the de-duplication P1 needs. A face
-// this rank does not own lies in one of its cells (the other one is on the owner), whose faces go to the
-// owner.
-static PetscErrorCode BuildRowsCR(MPI_Comm comm, const Space &space, Rows &rows)
+// filled in from the cell table in one pass, without the cells-of-each-DOF table and the de-duplication
+// P1 needs. A face this rank does not own lies in one of its cells (the other one is on the owner), whose
+// faces go to the owner.
+template <class Row>
+static PetscErrorCode ForEachRowCR(MPI_Comm comm, const Space &space, const Numbering &num, Row row)
 {
   const PetscInt nb = space.Nb();
   PetscMPIInt    size;
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_size(comm, &size));
-  std::vector<PetscInt>              length(space.numOwned, 1); // the row itself
+  std::vector<PetscInt>              offset(space.numOwned + 1, 0);
   std::vector<std::vector<PetscInt>> send(size);
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
     const PetscInt *dofs = space.Dofs(c);
     for (PetscInt i = 0; i < nb; ++i) {
-      const PetscInt g = rows.global[dofs[i]];
-      if (rows.Owned(g)) {
-        length[g - rows.rstart] += nb - 1;
+      const PetscInt g = num.global[dofs[i]];
+      if (num.Owned(g)) {
+        offset[g - num.rstart + 1] += nb - 1;
         continue;
       }
-      std::vector<PetscInt> &buf = send[OwnerOf(rows.ranges, g)];
+      std::vector<PetscInt> &buf = send[OwnerOf(num.ranges, g)];
       buf.push_back(g);
       buf.push_back(nb - 1);
       for (PetscInt j = 0; j < nb; ++j)
-        if (j != i) buf.push_back(rows.global[dofs[j]]);
+        if (j != i) buf.push_back(num.global[dofs[j]]);
     }
   }
-  std::vector<PetscInt> received;
-  PetscCall(ExchangeRecords(comm, send, received));
-  for (size_t k = 0; k < received.size(); k += 2 + received[k + 1]) length[received[k] - rows.rstart] += received[k + 1];
-  rows.offset.assign(space.numOwned + 1, 0);
-  for (PetscInt i = 0; i < space.numOwned; ++i) rows.offset[i + 1] = rows.offset[i] + length[i];
-  rows.cols.resize(rows.offset[space.numOwned]);
-  std::vector<PetscInt> next(rows.offset.begin(), rows.offset.end() - 1);
-  for (PetscInt i = 0; i < space.numOwned; ++i) rows.cols[next[i]++] = rows.rstart + i;
+  Extra extra;
+  PetscCall(ExchangeExtra(comm, space.numOwned, num, send, extra));
+  for (PetscInt i = 0; i < space.numOwned; ++i) offset[i + 1] += offset[i] + 1 + extra.offset[i + 1] - extra.offset[i];
+  std::vector<PetscInt> cols(offset[space.numOwned]), next(space.numOwned);
+  for (PetscInt i = 0; i < space.numOwned; ++i) {
+    next[i]         = offset[i];
+    cols[next[i]++] = num.rstart + i;
+    for (PetscInt k = extra.offset[i]; k < extra.offset[i + 1]; ++k) cols[next[i]++] = extra.cols[k];
+  }
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
     const PetscInt *dofs = space.Dofs(c);
     for (PetscInt i = 0; i < nb; ++i) {
-      const PetscInt g = rows.global[dofs[i]];
-      if (!rows.Owned(g)) continue;
+      const PetscInt g = num.global[dofs[i]];
+      if (!num.Owned(g)) continue;
+      PetscInt *out = &cols[next[g - num.rstart]];
       for (PetscInt j = 0; j < nb; ++j)
-        if (j != i) rows.cols[next[g - rows.rstart]++] = rows.global[dofs[j]];
+        if (j != i) *out++ = num.global[dofs[j]];
+      next[g - num.rstart] += nb - 1;
     }
   }
-  AppendReceived(received, rows, next);
-  for (PetscInt i = 0; i < space.numOwned; ++i) std::sort(rows.cols.begin() + rows.offset[i], rows.cols.begin() + rows.offset[i + 1]);
+  for (PetscInt i = 0; i < space.numOwned; ++i) {
+    SortRow(&cols[offset[i]], offset[i + 1] - offset[i]);
+    row(i, &cols[offset[i]], offset[i + 1] - offset[i]);
+  }
   PetscFunctionReturn(0);
 }
 
 // P1: a vertex lies in many cells, so the columns of a row come from the cells-of-each-DOF table with
-// duplicates skipped; the columns other ranks' cells give a shared row arrive as records and are merged.
-static PetscErrorCode BuildRowsP1(MPI_Comm comm, const Space &space, Rows &rows)
+// duplicates skipped; the columns other ranks' cells give a shared row are merged.
+template <class Row>
+static PetscErrorCode ForEachRowP1(MPI_Comm comm, const Space &space, const Numbering &num, Row row)
 {
   PetscMPIInt size;
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_size(comm, &size));
   const DofCells                     dc = BuildDofCells(space);
-  std::vector<PetscInt>              mark(space.numLocal, -1), localOf(space.numOwned, -1), received;
+  std::vector<PetscInt>              mark(space.numLocal, -1);
   std::vector<std::vector<PetscInt>> send(size);
   for (PetscInt r = 0; r < space.numLocal; ++r) {
-    const PetscInt g = rows.global[r];
-    if (rows.Owned(g)) {
-      localOf[g - rows.rstart] = r;
-      continue;
-    }
-    std::vector<PetscInt> &buf = send[OwnerOf(rows.ranges, g)];
+    const PetscInt g = num.global[r];
+    if (num.Owned(g)) continue;
+    std::vector<PetscInt> &buf = send[OwnerOf(num.ranges, g)];
     buf.push_back(g);
     const size_t head = buf.size();
     buf.push_back(0);
-    ForEachColumn(space, dc, r, mark, [&](PetscInt d) { buf.push_back(rows.global[d]); });
+    ForEachColumn(space, dc, r, mark, [&](PetscInt d) { buf.push_back(num.global[d]); });
     buf[head] = (PetscInt)(buf.size() - head - 1);
   }
-  PetscCall(ExchangeRecords(comm, send, received));
-  // Each row: its own columns, then the received ones; sorted, and duplicates dropped where a row is shared.
-  std::vector<PetscInt> extraOffset(space.numOwned + 1, 0), extra;
-  for (size_t k = 0; k < received.size(); k += 2 + received[k + 1]) extraOffset[received[k] - rows.rstart + 1] += received[k + 1];
-  for (PetscInt i = 0; i < space.numOwned; ++i) extraOffset[i + 1] += extraOffset[i];
-  extra.resize(extraOffset[space.numOwned]);
-  std::vector<PetscInt> next(extraOffset.begin(), extraOffset.end() - 1);
-  for (size_t k = 0; k < received.size(); k += 2 + received[k + 1])
-    for (PetscInt j = 0; j < received[k + 1]; ++j) extra[next[received[k] - rows.rstart]++] = received[k + 2 + j];
-  rows.offset.assign(space.numOwned + 1, 0);
-  rows.cols.clear();
-  rows.cols.reserve(dc.cells.size() * 7 / 10 + space.numOwned); // about a row's distinct columns per cell entry
-  for (PetscInt i = 0; i < space.numOwned; ++i) {
-    const PetscInt r = localOf[i];
-    PetscCheck(r >= 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "owned row %" PetscInt_FMT " has no local DOF", rows.rstart + i);
-    const auto begin = rows.cols.size();
-    ForEachColumn(space, dc, r, mark, [&](PetscInt d) { rows.cols.push_back(rows.global[d]); });
-    rows.cols.insert(rows.cols.end(), extra.begin() + extraOffset[i], extra.begin() + extraOffset[i + 1]);
-    std::sort(rows.cols.begin() + begin, rows.cols.end());
-    rows.cols.erase(std::unique(rows.cols.begin() + begin, rows.cols.end()), rows.cols.end());
-    rows.offset[i + 1] = (PetscInt)rows.cols.size();
+  Extra extra;
+  PetscCall(ExchangeExtra(comm, space.numOwned, num, send, extra));
+  std::vector<PetscInt> cols;
+  for (PetscInt r = 0; r < space.numLocal; ++r) {
+    const PetscInt g = num.global[r];
+    if (!num.Owned(g)) continue;
+    const PetscInt i = g - num.rstart;
+    cols.assign(extra.cols.begin() + extra.offset[i], extra.cols.begin() + extra.offset[i + 1]);
+    ForEachColumn(space, dc, r, mark, [&](PetscInt d) { cols.push_back(num.global[d]); });
+    SortRow(cols.data(), (PetscInt)cols.size());
+    cols.erase(std::unique(cols.begin(), cols.end()), cols.end()); // a shared row's columns from both sides
+    row(i, cols.data(), (PetscInt)cols.size());
   }
-  PetscFunctionReturn(0);
-}
-
-static PetscErrorCode BuildRows(const Space &space, Rows &rows)
-{
-  MPI_Comm    comm = PetscObjectComm((PetscObject)space.dm);
-  PetscMPIInt rank;
-  PetscFunctionBeginUser;
-  PetscCallMPI(MPI_Comm_rank(comm, &rank));
-  PetscCall(OwnershipRanges(comm, space.numOwned, rows.ranges));
-  rows.rstart = rows.ranges[rank], rows.rend = rows.ranges[rank + 1];
-  PetscCall(GlobalIndices(space, rows.global));
-  if (space.element == Element::CR) PetscCall(BuildRowsCR(comm, space, rows));
-  else PetscCall(BuildRowsP1(comm, space, rows));
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode CreateStiffnessMatrix(const Space &space, Mat *A)
 {
   MPI_Comm             comm = PetscObjectComm((PetscObject)space.dm);
-  Rows                 rows;
-  PetscMPIInt          size;
+  Numbering            num;
+  PetscMPIInt          size, rank;
   static PetscLogEvent event = 0;
   PetscFunctionBeginUser;
   if (!event) PetscCall(PetscLogEventRegister("StiffnessPattern", MAT_CLASSID, &event));
   PetscCall(PetscLogEventBegin(event, 0, 0, 0, 0));
   PetscCallMPI(MPI_Comm_size(comm, &size));
-  PetscCall(BuildRows(space, rows));
-  // The columns of the diagonal block (numbered from the first owned one) and of the off-diagonal block
-  // (global until the assembly compacts them), each row sorted as the global ones are.
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  PetscCall(OwnershipRanges(comm, space.numOwned, num.ranges));
+  num.rstart = num.ranges[rank], num.rend = num.ranges[rank + 1];
+  PetscCall(GlobalIndices(space, num.global));
+  // The rows' columns, split into those of the diagonal block (numbered from the first owned one) and of
+  // the off-diagonal block (global until the assembly compacts them), each row sorted. The rows arrive in
+  // the order of their local DOFs, which the global numbering of the owned ones follows.
   std::vector<PetscInt> diag(space.numOwned, 0), offdiag(space.numOwned, 0), dcols, ocols;
-  dcols.reserve(rows.cols.size());
-  for (PetscInt i = 0; i < space.numOwned; ++i)
-    for (PetscInt k = rows.offset[i]; k < rows.offset[i + 1]; ++k) {
-      const PetscInt g = rows.cols[k];
-      if (rows.Owned(g)) ++diag[i], dcols.push_back(g - rows.rstart);
-      else ++offdiag[i], ocols.push_back(g);
+  dcols.reserve(space.numOwned * (space.element == Element::CR ? 2 * space.Nb() - 1 : (space.dim == 2 ? 7 : 15)));
+  PetscInt   expected = 0;
+  const auto row      = [&](PetscInt i, const PetscInt *cols, PetscInt n) {
+    expected += i != expected ? space.numOwned + 1 : 1; // a row out of order makes expected > numOwned
+    for (PetscInt k = 0; k < n; ++k) {
+      if (num.Owned(cols[k])) ++diag[i], dcols.push_back(cols[k] - num.rstart);
+      else ++offdiag[i], ocols.push_back(cols[k]);
     }
-  std::vector<PetscInt>().swap(rows.cols);
+  };
+  if (space.element == Element::CR) PetscCall(ForEachRowCR(comm, space, num, row));
+  else PetscCall(ForEachRowP1(comm, space, num, row));
+  PetscCheck(expected == space.numOwned, PETSC_COMM_SELF, PETSC_ERR_PLIB, "the owned DOFs are not numbered in local order");
   PetscCall(MatCreate(comm, A));
   PetscCall(MatSetSizes(*A, space.numOwned, space.numOwned, space.numGlobal, space.numGlobal));
   PetscCall(MatSetType(*A, MATAIJ));
@@ -279,22 +316,28 @@ PetscErrorCode StiffnessFill::Begin(const Space &space, Mat A)
 
 PetscErrorCode StiffnessFill::Add(const PetscInt *dofs, const PetscReal *Ke)
 {
+  PetscInt row[4], block[4], key[4]; // each DOF's owned row, and its column: block and index in that block
   PetscFunctionBeginUser;
+  for (PetscInt j = 0; j < nb_; ++j) {
+    row[j]   = row_[dofs[j]];
+    block[j] = row[j] < 0;
+    key[j]   = block[j] ? global_[dofs[j]] : row[j];
+  }
   for (PetscInt i = 0; i < nb_; ++i) {
-    const PetscInt r = row_[dofs[i]];
+    const PetscInt r = row[i];
     if (r < 0) { // another rank's row: to its owner at the assembly
-      PetscInt gr = global_[dofs[i]], gc[4];
+      PetscInt gc[4];
       for (PetscInt j = 0; j < nb_; ++j) gc[j] = global_[dofs[j]];
-      PetscCall(MatSetValues(A_, 1, &gr, nb_, gc, &Ke[i * nb_], ADD_VALUES));
+      PetscCall(MatSetValues(A_, 1, &key[i], nb_, gc, &Ke[i * nb_], ADD_VALUES));
       continue;
     }
     for (PetscInt j = 0; j < nb_; ++j) {
-      const PetscInt  d = dofs[j], b = row_[d] >= 0 ? 0 : 1, key = b ? global_[d] : row_[d];
-      const PetscInt *cols = ja_[b] + ia_[b][r], n = ia_[b][r + 1] - ia_[b][r];
+      const PetscInt  b = block[j], start = ia_[b][r], n = ia_[b][r + 1] - start;
+      const PetscInt *cols = ja_[b] + start;
       PetscInt        k    = 0;
-      while (k < n && cols[k] != key) ++k;
-      PetscCheck(k < n, PETSC_COMM_SELF, PETSC_ERR_PLIB, "column %" PetscInt_FMT " is not in the pattern of row %" PetscInt_FMT, global_[d], global_[dofs[i]]);
-      va_[b][ia_[b][r] + k] += Ke[i * nb_ + j];
+      while (k < n && cols[k] != key[j]) ++k;
+      PetscCheck(k < n, PETSC_COMM_SELF, PETSC_ERR_PLIB, "column %" PetscInt_FMT " is not in the pattern of row %" PetscInt_FMT, global_[dofs[j]], global_[dofs[i]]);
+      va_[b][start + k] += Ke[i * nb_ + j];
     }
   }
   PetscFunctionReturn(0);
