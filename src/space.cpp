@@ -137,8 +137,66 @@ static PetscErrorCode CreateSection(Space &s, PetscInt vStart, PetscInt vEnd, Pe
   PetscFunctionReturn(0);
 }
 
+// The vertices of every face (dim per face, in no particular order), from [fStart, fEnd) in order: the cell
+// tables look up each face twice, once from each of its cells, and a face's vertices then cost a table
+// read where CellVertices walks the cones down to the vertices again (ten cone look-ups per tetrahedron).
+static PetscErrorCode FaceVertices(DM dm, PetscInt dim, PetscInt fStart, PetscInt fEnd, std::vector<PetscInt> &fv)
+{
+  PetscFunctionBeginUser;
+  fv.resize((size_t)(fEnd - fStart) * dim);
+  for (PetscInt f = fStart; f < fEnd; ++f) {
+    const PetscInt *cone;
+    PetscInt       *v = &fv[(size_t)(f - fStart) * dim];
+    PetscCall(DMPlexGetCone(dm, f, &cone));
+    if (dim == 2) {
+      v[0] = cone[0], v[1] = cone[1];
+      continue;
+    }
+    const PetscInt *e0, *e1;
+    PetscCall(DMPlexGetCone(dm, cone[0], &e0));
+    PetscCall(DMPlexGetCone(dm, cone[1], &e1));
+    v[0] = e0[0], v[1] = e0[1], v[2] = e1[0] == e0[0] || e1[0] == e0[1] ? e1[1] : e1[0];
+  }
+  PetscFunctionReturn(0);
+}
+
+// The "Cell Sets" value of every cell, as DMLabelGetValue gives it (the first stratum holding the cell,
+// else the label's default), read stratum by stratum instead of searched for cell by cell.
+static PetscErrorCode CellSetValues(const Space &s, DMLabel cellSets, std::vector<PetscInt> &cellSet)
+{
+  PetscInt        numValues, defaultValue;
+  IS              valueIS;
+  const PetscInt *values;
+  PetscFunctionBeginUser;
+  PetscCall(DMLabelGetDefaultValue(cellSets, &defaultValue));
+  cellSet.assign(s.NumCells(), defaultValue);
+  std::vector<char> found(s.NumCells(), 0);
+  PetscCall(DMLabelGetNumValues(cellSets, &numValues));
+  PetscCall(DMLabelGetValueIS(cellSets, &valueIS));
+  PetscCall(ISGetIndices(valueIS, &values));
+  for (PetscInt v = 0; v < numValues; ++v) {
+    IS              points;
+    PetscInt        n;
+    const PetscInt *p;
+    PetscCall(DMLabelGetStratumIS(cellSets, values[v], &points));
+    if (!points) continue;
+    PetscCall(ISGetLocalSize(points, &n));
+    PetscCall(ISGetIndices(points, &p));
+    for (PetscInt i = 0; i < n; ++i)
+      if (p[i] >= s.cStart && p[i] < s.cEnd && !found[p[i] - s.cStart]) {
+        found[p[i] - s.cStart]   = 1;
+        cellSet[p[i] - s.cStart] = values[v];
+      }
+    PetscCall(ISRestoreIndices(points, &p));
+    PetscCall(ISDestroy(&points));
+  }
+  PetscCall(ISRestoreIndices(valueIS, &values));
+  PetscCall(ISDestroy(&valueIS));
+  PetscFunctionReturn(0);
+}
+
 // Cell tables: vertices, DOFs and Cell Sets values of each cell, and the vertex coordinates.
-static PetscErrorCode BuildCellTables(Space &s, PetscInt vEnd)
+static PetscErrorCode BuildCellTables(Space &s, PetscInt vEnd, PetscInt fStart, PetscInt fEnd)
 {
   Vec                coords;
   DM                 cdm;
@@ -147,7 +205,7 @@ static PetscErrorCode BuildCellTables(Space &s, PetscInt vEnd)
   DMLabel            cellSets;
   std::string        problem;
   PetscFunctionBeginUser;
-  const PetscInt nb = s.dim + 1, nc = s.NumCells();
+  const PetscInt nb = s.dim + 1, nc = s.NumCells(), dim = s.dim;
   PetscCall(DMGetLocalSection(s.mesh, &section));
   PetscInt dofStart;
   PetscCall(PetscSectionGetChart(section, &dofStart, NULL));
@@ -156,30 +214,45 @@ static PetscErrorCode BuildCellTables(Space &s, PetscInt vEnd)
   PetscCall(DMGetLocalSection(cdm, &csec));
   PetscCall(DMGetLabel(s.mesh, "Cell Sets", &cellSets));
   PetscCall(VecGetArrayRead(coords, &xa));
-  s.vertX.resize((vEnd - s.vStart) * s.dim);
+  s.vertX.resize((vEnd - s.vStart) * dim);
   for (PetscInt v = s.vStart; v < vEnd; ++v) {
     PetscInt off;
     PetscCall(PetscSectionGetOffset(csec, v, &off));
-    for (PetscInt d = 0; d < s.dim; ++d) s.vertX[(v - s.vStart) * s.dim + d] = PetscRealPart(xa[off + d]);
+    for (PetscInt d = 0; d < dim; ++d) s.vertX[(v - s.vStart) * dim + d] = PetscRealPart(xa[off + d]);
   }
   PetscCall(VecRestoreArrayRead(coords, &xa));
+  std::vector<PetscInt> fv;
+  PetscCall(FaceVertices(s.mesh, dim, fStart, fEnd, fv));
   if (s.element == Element::CR) s.cellDof.resize(nc * nb);
   s.cellVert.resize(nc * nb);
-  if (cellSets) s.cellSet.assign(nc, -1);
   for (PetscInt c = 0; c < nc; ++c) {
     const PetscInt  cell = s.cStart + c;
     const PetscInt *cone;
-    PetscInt        verts[4];
-    PetscCall(CellVertices(s.mesh, cell, s.dim, verts));
     PetscCall(DMPlexGetCone(s.mesh, cell, &cone));
+    // Vertex k is the one not on face k: vertex 0 the one of face 1 not on face 0, vertex k >= 1 the one
+    // of face 0 not on face k (face k holds vertex 0 and all of face 0's but one).
+    const PetscInt *F0 = &fv[(size_t)(cone[0] - fStart) * dim], *F1 = &fv[(size_t)(cone[1] - fStart) * dim];
+    const auto      on = [dim](const PetscInt *F, PetscInt v) {
+      bool in = false;
+      for (PetscInt i = 0; i < dim; ++i) in = in || F[i] == v;
+      return in;
+    };
+    PetscInt *verts = &s.cellVert[c * nb];
+    for (PetscInt i = 0; i < dim; ++i)
+      if (!on(F0, F1[i])) verts[0] = F1[i];
+    for (PetscInt k = 1; k <= dim; ++k) {
+      const PetscInt *Fk = &fv[(size_t)(cone[k] - fStart) * dim];
+      for (PetscInt i = 0; i < dim; ++i)
+        if (!on(Fk, F0[i])) verts[k] = F0[i];
+    }
     for (PetscInt i = 0; i < nb; ++i) {
       if (s.element == Element::CR) s.cellDof[c * nb + i] = cone[i] - dofStart; // see CreateSection
-      s.cellVert[c * nb + i] = verts[i] - s.vStart;
+      verts[i] -= s.vStart;
     }
-    if (cellSets) PetscCall(DMLabelGetValue(cellSets, cell, &s.cellSet[c]));
     const Space::Coords X = s.X(c);
-    if (!SimplexIsValid(s.dim, X) && problem.empty()) problem = Format("mesh: cell %d (near (%g, %g)) is degenerate", (int)cell, (double)X[0], (double)X[1]);
+    if (!SimplexIsValid(dim, X) && problem.empty()) problem = Format("mesh: cell %d (near (%g, %g)) is degenerate", (int)cell, (double)X[0], (double)X[1]);
   }
+  if (cellSets) PetscCall(CellSetValues(s, cellSets, s.cellSet));
   PetscCall(CheckAll(PetscObjectComm((PetscObject)s.mesh), problem.empty(), problem));
   PetscFunctionReturn(0);
 }
@@ -499,7 +572,7 @@ PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Spa
   PetscCall(SpaceCreateLayout(mesh, element, s, vEnd, fStart, fEnd));
   PetscCall(PetscLogEventEnd(ev[0], 0, 0, 0, 0));
   PetscCall(PetscLogEventBegin(ev[1], 0, 0, 0, 0));
-  PetscCall(BuildCellTables(s, vEnd));
+  PetscCall(BuildCellTables(s, vEnd, fStart, fEnd));
   PetscCall(PetscLogEventEnd(ev[1], 0, 0, 0, 0));
   PetscCall(PetscLogEventBegin(ev[2], 0, 0, 0, 0));
   PetscCall(CollectBoundary(s, problem));
