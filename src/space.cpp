@@ -113,27 +113,73 @@ void Space::FaceToCell(const BoundaryFace &bf, const PetscReal *mu, PetscReal *l
   for (PetscInt k = 0; k <= dim; ++k) lambda[k] = k == bf.opposite ? 0.0 : mu[n++];
 }
 
-static PetscErrorCode CreateSection(Space &s, PetscInt vStart, PetscInt vEnd, PetscInt fStart, PetscInt fEnd)
+// The section of a space's DOFs: one on each point of [start, end), the vertices (P1) or the faces (CR).
+// The chart covers the points that carry DOFs only, not the whole mesh: the local and the global section
+// keep two integers per point of their chart (2D P1: six mesh points per vertex).
+static PetscErrorCode DofSection(MPI_Comm comm, PetscInt start, PetscInt end, PetscSection *section)
+{
+  PetscFunctionBeginUser;
+  PetscCall(PetscSectionCreate(comm, section));
+  PetscCall(PetscSectionSetChart(*section, start, end));
+  for (PetscInt p = start; p < end; ++p) PetscCall(PetscSectionSetDof(*section, p, 1));
+  PetscCall(PetscSectionSetUp(*section));
+  PetscFunctionReturn(0);
+}
+
+// The points carrying the DOFs of element e on mesh.
+static PetscErrorCode DofPoints(DM mesh, Element e, PetscInt *start, PetscInt *end)
+{
+  PetscFunctionBeginUser;
+  if (e == Element::P1) PetscCall(DMPlexGetDepthStratum(mesh, 0, start, end));
+  else PetscCall(DMPlexGetHeightStratum(mesh, 1, start, end));
+  PetscFunctionReturn(0);
+}
+
+// The layout of the DOFs (Space::dm), their numbers and their global indices (Space::ltog), from the local
+// section and the global one PETSc makes from it and the mesh's point SF, as a DMPlex carrying the section
+// would (DMGetGlobalSection, DMGetLocalToGlobalMapping), without the DM: a clone of the mesh copies all its
+// labels, which the adaptive meshes keep as hash sets (half of a small step's set-up).
+static PetscErrorCode CreateLayout(Space &s, PetscInt start, PetscInt end)
+{
+  MPI_Comm     comm = PetscObjectComm((PetscObject)s.mesh);
+  PetscSection local, global;
+  PetscSF      pointSF;
+  PetscInt    *indices;
+  PetscFunctionBeginUser;
+  PetscCall(DofSection(comm, start, end, &local));
+  PetscCall(PetscSectionGetStorageSize(local, &s.numLocal));
+  // The cell tables and, for P1, Dofs() and ForEachBoundaryDof rely on DOF = p - start.
+  PetscCall(LayoutCheckPointOrder(local, start, end));
+  PetscCall(DMGetPointSF(s.mesh, &pointSF));
+  PetscCall(PetscSectionCreateGlobalSection(local, pointSF, PETSC_FALSE, PETSC_FALSE, &global));
+  PetscCall(PetscSectionGetConstrainedStorageSize(global, &s.numOwned));
+  PetscCallMPI(MPI_Allreduce(&s.numOwned, &s.numGlobal, 1, MPIU_INT, MPI_SUM, comm));
+  PetscCall(LayoutCreate(comm, local, global, &s.dm));
+  // A DOF another rank owns has the offset -(its global index + 1).
+  PetscCall(PetscMalloc1(s.numLocal, &indices));
+  for (PetscInt p = start; p < end; ++p) {
+    PetscInt off;
+    PetscCall(PetscSectionGetOffset(global, p, &off));
+    indices[p - start] = off >= 0 ? off : -(off + 1);
+  }
+  PetscCall(ISLocalToGlobalMappingCreate(comm, 1, s.numLocal, indices, PETSC_OWN_POINTER, &s.ltog));
+  PetscCall(PetscSectionDestroy(&global));
+  PetscCall(PetscSectionDestroy(&local));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SpaceSectionDM(const Space &s, DM *dm)
 {
   PetscSection section;
+  PetscInt     start, end;
   PetscFunctionBeginUser;
-  PetscCall(PetscSectionCreate(PetscObjectComm((PetscObject)s.mesh), &section));
-  // The chart covers the points that carry DOFs only, not the whole mesh: the local and the global
-  // section keep two integers per point of their chart (2D P1: six mesh points per vertex).
-  const PetscInt start = s.element == Element::P1 ? vStart : fStart, end = s.element == Element::P1 ? vEnd : fEnd;
-  PetscCall(PetscSectionSetChart(section, start, end));
-  for (PetscInt p = start; p < end; ++p) PetscCall(PetscSectionSetDof(section, p, 1));
-  PetscCall(PetscSectionSetUp(section));
-  PetscCall(PetscSectionGetStorageSize(section, &s.numLocal));
-  // The cell tables and, for P1, Dofs() and ForEachBoundaryDof rely on DOF = p - start.
-  PetscCall(LayoutCheckPointOrder(section, start, end));
-  PetscCall(DMSetLocalSection(s.mesh, section));
+  PetscCheck(s.mesh, PETSC_COMM_SELF, PETSC_ERR_ORDER, "the space's mesh was released");
+  PetscCall(DMClone(s.mesh, dm));
+  PetscCall(DofPoints(*dm, s.element, &start, &end));
+  PetscCall(DofSection(PetscObjectComm((PetscObject)*dm), start, end, &section));
+  PetscCall(DMSetLocalSection(*dm, section));
   PetscCall(PetscSectionDestroy(&section));
-  PetscCall(DMSetMatType(s.mesh, MATAIJ));
-  PetscSection global;
-  PetscCall(DMGetGlobalSection(s.mesh, &global));
-  PetscCall(PetscSectionGetConstrainedStorageSize(global, &s.numOwned));
-  PetscCallMPI(MPI_Allreduce(&s.numOwned, &s.numGlobal, 1, MPIU_INT, MPI_SUM, PetscObjectComm((PetscObject)s.mesh)));
+  PetscCall(DMSetMatType(*dm, MATAIJ));
   PetscFunctionReturn(0);
 }
 
@@ -200,15 +246,12 @@ static PetscErrorCode BuildCellTables(Space &s, PetscInt vEnd, PetscInt fStart, 
 {
   Vec                coords;
   DM                 cdm;
-  PetscSection       csec, section;
+  PetscSection       csec;
   const PetscScalar *xa;
   DMLabel            cellSets;
   std::string        problem;
   PetscFunctionBeginUser;
   const PetscInt nb = s.dim + 1, nc = s.NumCells(), dim = s.dim;
-  PetscCall(DMGetLocalSection(s.mesh, &section));
-  PetscInt dofStart;
-  PetscCall(PetscSectionGetChart(section, &dofStart, NULL));
   PetscCall(DMGetCoordinatesLocal(s.mesh, &coords));
   PetscCall(DMGetCoordinateDM(s.mesh, &cdm));
   PetscCall(DMGetLocalSection(cdm, &csec));
@@ -246,7 +289,7 @@ static PetscErrorCode BuildCellTables(Space &s, PetscInt vEnd, PetscInt fStart, 
         if (!on(Fk, F0[i])) verts[k] = F0[i];
     }
     for (PetscInt i = 0; i < nb; ++i) {
-      if (s.element == Element::CR) s.cellDof[c * nb + i] = cone[i] - dofStart; // see CreateSection
+      if (s.element == Element::CR) s.cellDof[c * nb + i] = cone[i] - fStart; // DOF = p - start, see CreateLayout
       verts[i] -= s.vStart;
     }
     const Space::Coords X = s.X(c);
@@ -548,8 +591,9 @@ static PetscErrorCode SpaceCreateLayout(DM mesh, Element element, Space &s, Pets
 {
   PetscInt vStart;
   PetscFunctionBeginUser;
-  PetscCall(DMClone(mesh, &s.mesh));
-  PetscCall(PetscObjectSetName((PetscObject)s.mesh, "mesh"));
+  // The mesh itself, not a clone: the space reads its topology only, and its section lives in the layout.
+  PetscCall(PetscObjectReference((PetscObject)mesh));
+  s.mesh = mesh;
   s.element = element;
   PetscCall(DMGetDimension(s.mesh, &s.dim));
   PetscCheck(s.dim == 2 || s.dim == 3, PetscObjectComm((PetscObject)mesh), PETSC_ERR_SUP, "only 2D and 3D simplex meshes are supported");
@@ -557,8 +601,7 @@ static PetscErrorCode SpaceCreateLayout(DM mesh, Element element, Space &s, Pets
   PetscCall(DMPlexGetHeightStratum(s.mesh, 1, &fStart, &fEnd));
   PetscCall(DMPlexGetHeightStratum(s.mesh, 0, &s.cStart, &s.cEnd));
   s.vStart = vStart;
-  PetscCall(CreateSection(s, vStart, vEnd, fStart, fEnd));
-  PetscCall(LayoutCreateFromDM(s.mesh, &s.dm));
+  PetscCall(CreateLayout(s, element == Element::P1 ? vStart : fStart, element == Element::P1 ? vEnd : fEnd));
   PetscFunctionReturn(0);
 }
 
@@ -583,8 +626,6 @@ PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Spa
   PetscCall(ClassifyDofs(s, problem));
   if (problem.HasContact() && !problem.dirichlet.empty()) PetscCall(CheckObstacleMeetsDirichlet(s, problem));
   PetscCall(PetscLogEventEnd(ev[3], 0, 0, 0, 0));
-  PetscCall(DMGetLocalToGlobalMapping(s.mesh, &s.ltog));
-  PetscCall(PetscObjectReference((PetscObject)s.ltog));
   PetscFunctionReturn(0);
 }
 
@@ -611,8 +652,6 @@ PetscErrorCode SpaceCreateP1Of(DM mesh, const Space &cr, const Problem &problem,
   PetscCall(PetscLogEventBegin(ev[3], 0, 0, 0, 0));
   PetscCall(ClassifyDofs(s, problem));
   PetscCall(PetscLogEventEnd(ev[3], 0, 0, 0, 0));
-  PetscCall(DMGetLocalToGlobalMapping(s.mesh, &s.ltog));
-  PetscCall(PetscObjectReference((PetscObject)s.ltog));
   PetscFunctionReturn(0);
 }
 
