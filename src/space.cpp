@@ -206,41 +206,6 @@ static PetscErrorCode FaceVertices(DM dm, PetscInt dim, PetscInt fStart, PetscIn
   PetscFunctionReturn(0);
 }
 
-// The "Cell Sets" value of every cell, as DMLabelGetValue gives it (the first stratum holding the cell,
-// else the label's default), read stratum by stratum instead of searched for cell by cell.
-static PetscErrorCode CellSetValues(const Space &s, DMLabel cellSets, std::vector<PetscInt> &cellSet)
-{
-  PetscInt        numValues, defaultValue;
-  IS              valueIS;
-  const PetscInt *values;
-  PetscFunctionBeginUser;
-  PetscCall(DMLabelGetDefaultValue(cellSets, &defaultValue));
-  cellSet.assign(s.NumCells(), defaultValue);
-  std::vector<char> found(s.NumCells(), 0);
-  PetscCall(DMLabelGetNumValues(cellSets, &numValues));
-  PetscCall(DMLabelGetValueIS(cellSets, &valueIS));
-  PetscCall(ISGetIndices(valueIS, &values));
-  for (PetscInt v = 0; v < numValues; ++v) {
-    IS              points;
-    PetscInt        n;
-    const PetscInt *p;
-    PetscCall(DMLabelGetStratumIS(cellSets, values[v], &points));
-    if (!points) continue;
-    PetscCall(ISGetLocalSize(points, &n));
-    PetscCall(ISGetIndices(points, &p));
-    for (PetscInt i = 0; i < n; ++i)
-      if (p[i] >= s.cStart && p[i] < s.cEnd && !found[p[i] - s.cStart]) {
-        found[p[i] - s.cStart]   = 1;
-        cellSet[p[i] - s.cStart] = values[v];
-      }
-    PetscCall(ISRestoreIndices(points, &p));
-    PetscCall(ISDestroy(&points));
-  }
-  PetscCall(ISRestoreIndices(valueIS, &values));
-  PetscCall(ISDestroy(&valueIS));
-  PetscFunctionReturn(0);
-}
-
 // Cell tables: vertices, DOFs and Cell Sets values of each cell, and the vertex coordinates.
 static PetscErrorCode BuildCellTables(Space &s, PetscInt vEnd, PetscInt fStart, PetscInt fEnd)
 {
@@ -295,7 +260,11 @@ static PetscErrorCode BuildCellTables(Space &s, PetscInt vEnd, PetscInt fStart, 
     const Space::Coords X = s.X(c);
     if (!SimplexIsValid(dim, X) && problem.empty()) problem = Format("mesh: cell %d (near (%g, %g)) is degenerate", (int)cell, (double)X[0], (double)X[1]);
   }
-  if (cellSets) PetscCall(CellSetValues(s, cellSets, s.cellSet));
+  // Cell by cell: the adaptive meshes hold the label as a hash set, which a stratum's IS would first sort.
+  if (cellSets) {
+    s.cellSet.resize(nc);
+    for (PetscInt c = 0; c < nc; ++c) PetscCall(DMLabelGetValue(cellSets, s.cStart + c, &s.cellSet[c]));
+  }
   PetscCall(CheckAll(PetscObjectComm((PetscObject)s.mesh), problem.empty(), problem));
   PetscFunctionReturn(0);
 }
