@@ -281,11 +281,9 @@ static std::string PointText(const Space &s, PetscInt p)
 static PetscErrorCode CollectBoundary(Space &s, const Problem &problem)
 {
   MPI_Comm comm = PetscObjectComm((PetscObject)s.mesh);
-  DMLabel  faceSets, boundary;
+  DMLabel  faceSets;
   PetscFunctionBeginUser;
   PetscCall(DMGetLabel(s.mesh, "Face Sets", &faceSets));
-  PetscCall(DMLabelCreate(PETSC_COMM_SELF, "boundary", &boundary));
-  PetscCall(DMPlexMarkBoundaryFaces(s.mesh, 1, boundary));
   const std::pair<const char *, const std::vector<PetscInt> *> parts[] = {{"-bc_dirichlet", &problem.dirichlet}, {"-bc_neumann", &problem.neumann}, {"-bc_contact", &problem.contact}};
   // Each face carries at most one condition: a face in two named parts (a Gmsh line in two physical
   // groups, say) would get its Neumann integral twice, or be both Dirichlet and contact.
@@ -296,11 +294,11 @@ static PetscErrorCode CollectBoundary(Space &s, const Problem &problem)
     for (PetscInt value : *part.second) {
       PetscCall(LabelFaces(s.mesh, faceSets, value, faces));
       for (const PetscInt f : faces) {
-        PetscInt        isBoundary, nsupp;
+        PetscInt        nsupp;
         const PetscInt *supp, *cone;
-        PetscCall(DMLabelGetValue(boundary, f, &isBoundary));
+        // A boundary face has one cell, as DMPlexMarkBoundaryFaces decides it, without marking them all.
         PetscCall(DMPlexGetSupportSize(s.mesh, f, &nsupp));
-        if (isBoundary != 1 || nsupp != 1) {
+        if (nsupp != 1) {
           if (interior.empty()) interior = Format("option %s: boundary part %d contains interior faces", part.first, (int)value);
           continue;
         }
@@ -324,7 +322,6 @@ static PetscErrorCode CollectBoundary(Space &s, const Problem &problem)
       if (global == 0) SIGNORINI_INPUT_ERROR(comm, "%s", MissingPartMessage(part.first, value).c_str());
     }
   }
-  PetscCall(DMLabelDestroy(&boundary));
   PetscCall(CheckAll(comm, interior.empty(), interior));
   PetscCall(CheckAll(comm, overlap.empty(), overlap));
   PetscFunctionReturn(0);
