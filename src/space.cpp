@@ -552,7 +552,7 @@ static PetscErrorCode SpaceEvents(PetscLogEvent ev[4])
   PetscFunctionReturn(0);
 }
 
-// The mesh clone, its strata and the section of the DOFs with their layout: the start of both ways to create a space.
+// The mesh, its strata and the section of the DOFs with their layout: the start of both ways to create a space.
 static PetscErrorCode SpaceCreateLayout(DM mesh, Element element, Space &s, PetscInt &vEnd, PetscInt &fStart, PetscInt &fEnd)
 {
   PetscInt vStart;

@@ -13,7 +13,7 @@
 namespace signorini {
 
 // A DMShell with the local and global layout and the local/global exchange of `dm`, a DM with a local
-// section (the space's DMPlex clone). Collective.
+// section (e.g. output fields on a DMPlex clone). Collective.
 PetscErrorCode LayoutCreateFromDM(DM dm, DM *layout);
 // The same from the two sections themselves (the global one as PetscSectionCreateGlobalSection makes it),
 // without a DM that carries them. Collective on comm.

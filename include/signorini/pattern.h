@@ -20,7 +20,7 @@ PetscErrorCode CreateStiffnessMatrix(const Space &space, Mat *A);
 
 // Adds element matrices into a matrix from CreateStiffnessMatrix before its assembly by writing into its
 // value arrays: an entry of a row this rank owns is found among the few columns of that row, where
-// MatSetValuesLocal maps and searches every entry (three quarters of the assembly's cell loop); a row
+// MatSetValuesLocal maps and searches every entry and inserts into rows still growing; a row
 // another rank owns goes through MatSetValues to its owner at the assembly, as before. Each value is added
 // where and in the order MatSetValuesLocal would add it, so the matrix is the same bit for bit.
 class StiffnessFill {
