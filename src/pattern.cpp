@@ -138,27 +138,35 @@ static void SortRow(PetscInt *a, PetscInt n)
   }
 }
 
-// Calls row(i, cols, n) for every owned row i in order, cols its n distinct global columns, sorted.
+// The owned rows split into the columns of the diagonal block (numbered from the first owned one) and of
+// the off-diagonal block (global until the assembly compacts them), each row sorted: what
+// MatXAIJSetPreallocation and MatSeqAIJSetColumnIndices take.
+struct Split {
+  std::vector<PetscInt> diag, offdiag, dcols, ocols; // per row counts; the rows' columns, row after row
+};
+
 // Crouzeix-Raviart: a face lies in at most two cells, which share no other face, so the columns of a row
-// are the row itself and the other faces of its cells, all distinct: 1 + d * (its cells, on all ranks),
-// filled in from the cell table in one pass, without the cells-of-each-DOF table and the de-duplication
-// P1 needs. A face this rank does not own lies in one of its cells (the other one is on the owner), whose
-// faces go to the owner.
-template <class Row>
-static PetscErrorCode ForEachRowCR(MPI_Comm comm, const Space &space, const Numbering &num, Row row)
+// are the row itself and the other faces of its cells, all distinct: counted in one pass over the cell
+// table and written in a second one straight to their places, without the cells-of-each-DOF table and the
+// de-duplication P1 needs. A face this rank does not own lies in one of its cells (the other one is on
+// the owner), whose faces go to the owner.
+static PetscErrorCode SplitRowsCR(MPI_Comm comm, const Space &space, const Numbering &num, Split &split)
 {
-  const PetscInt nb = space.Nb();
+  const PetscInt nb = space.Nb(), n = space.numOwned;
   PetscMPIInt    size;
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_size(comm, &size));
-  std::vector<PetscInt>              offset(space.numOwned + 1, 0);
+  split.diag.assign(n, 1); // the row itself
+  split.offdiag.assign(n, 0);
+  const auto count = [&](PetscInt i, PetscInt g) { ++(num.Owned(g) ? split.diag[i] : split.offdiag[i]); };
   std::vector<std::vector<PetscInt>> send(size);
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
     const PetscInt *dofs = space.Dofs(c);
     for (PetscInt i = 0; i < nb; ++i) {
       const PetscInt g = num.global[dofs[i]];
       if (num.Owned(g)) {
-        offset[g - num.rstart + 1] += nb - 1;
+        for (PetscInt j = 0; j < nb; ++j)
+          if (j != i) count(g - num.rstart, num.global[dofs[j]]);
         continue;
       }
       std::vector<PetscInt> &buf = send[OwnerOf(num.ranges, g)];
@@ -169,36 +177,41 @@ static PetscErrorCode ForEachRowCR(MPI_Comm comm, const Space &space, const Numb
     }
   }
   Extra extra;
-  PetscCall(ExchangeExtra(comm, space.numOwned, num, send, extra));
-  for (PetscInt i = 0; i < space.numOwned; ++i) offset[i + 1] += offset[i] + 1 + extra.offset[i + 1] - extra.offset[i];
-  std::vector<PetscInt> cols(offset[space.numOwned]), next(space.numOwned);
-  for (PetscInt i = 0; i < space.numOwned; ++i) {
-    next[i]         = offset[i];
-    cols[next[i]++] = num.rstart + i;
-    for (PetscInt k = extra.offset[i]; k < extra.offset[i + 1]; ++k) cols[next[i]++] = extra.cols[k];
+  PetscCall(ExchangeExtra(comm, n, num, send, extra));
+  for (PetscInt i = 0; i < n; ++i)
+    for (PetscInt k = extra.offset[i]; k < extra.offset[i + 1]; ++k) count(i, extra.cols[k]);
+  std::vector<PetscInt> dnext(n + 1, 0), onext(n + 1, 0);
+  for (PetscInt i = 0; i < n; ++i) dnext[i + 1] = dnext[i] + split.diag[i], onext[i + 1] = onext[i] + split.offdiag[i];
+  split.dcols.resize(dnext[n]);
+  split.ocols.resize(onext[n]);
+  const auto put = [&](PetscInt i, PetscInt g) {
+    if (num.Owned(g)) split.dcols[dnext[i]++] = g - num.rstart;
+    else split.ocols[onext[i]++] = g;
+  };
+  for (PetscInt i = 0; i < n; ++i) {
+    put(i, num.rstart + i);
+    for (PetscInt k = extra.offset[i]; k < extra.offset[i + 1]; ++k) put(i, extra.cols[k]);
   }
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
     const PetscInt *dofs = space.Dofs(c);
     for (PetscInt i = 0; i < nb; ++i) {
       const PetscInt g = num.global[dofs[i]];
       if (!num.Owned(g)) continue;
-      PetscInt *out = &cols[next[g - num.rstart]];
       for (PetscInt j = 0; j < nb; ++j)
-        if (j != i) *out++ = num.global[dofs[j]];
-      next[g - num.rstart] += nb - 1;
+        if (j != i) put(g - num.rstart, num.global[dofs[j]]);
     }
   }
-  for (PetscInt i = 0; i < space.numOwned; ++i) {
-    SortRow(&cols[offset[i]], offset[i + 1] - offset[i]);
-    row(i, &cols[offset[i]], offset[i + 1] - offset[i]);
+  // dnext[i], onext[i] now end row i; each block's row is sorted on its own, the global order split.
+  for (PetscInt i = 0; i < n; ++i) {
+    SortRow(&split.dcols[dnext[i] - split.diag[i]], split.diag[i]);
+    SortRow(&split.ocols[onext[i] - split.offdiag[i]], split.offdiag[i]);
   }
   PetscFunctionReturn(0);
 }
 
 // P1: a vertex lies in many cells, so the columns of a row come from the cells-of-each-DOF table with
 // duplicates skipped; the columns other ranks' cells give a shared row are merged.
-template <class Row>
-static PetscErrorCode ForEachRowP1(MPI_Comm comm, const Space &space, const Numbering &num, Row row)
+static PetscErrorCode SplitRowsP1(MPI_Comm comm, const Space &space, const Numbering &num, Split &split)
 {
   PetscMPIInt size;
   PetscFunctionBeginUser;
@@ -219,6 +232,10 @@ static PetscErrorCode ForEachRowP1(MPI_Comm comm, const Space &space, const Numb
   Extra extra;
   PetscCall(ExchangeExtra(comm, space.numOwned, num, send, extra));
   std::vector<PetscInt> cols;
+  PetscInt              row = 0;
+  split.diag.assign(space.numOwned, 0);
+  split.offdiag.assign(space.numOwned, 0);
+  split.dcols.reserve(dc.cells.size() * 7 / 10 + space.numOwned); // about a row's distinct columns per cell entry
   for (PetscInt r = 0; r < space.numLocal; ++r) {
     const PetscInt g = num.global[r];
     if (!num.Owned(g)) continue;
@@ -227,7 +244,12 @@ static PetscErrorCode ForEachRowP1(MPI_Comm comm, const Space &space, const Numb
     ForEachColumn(space, dc, r, mark, [&](PetscInt d) { cols.push_back(num.global[d]); });
     SortRow(cols.data(), (PetscInt)cols.size());
     cols.erase(std::unique(cols.begin(), cols.end()), cols.end()); // a shared row's columns from both sides
-    row(i, cols.data(), (PetscInt)cols.size());
+    // The columns go row after row: the owned DOFs must be numbered in local order.
+    PetscCheck(i == row++, PETSC_COMM_SELF, PETSC_ERR_PLIB, "the owned DOFs are not numbered in local order");
+    for (const PetscInt col : cols) {
+      if (num.Owned(col)) ++split.diag[i], split.dcols.push_back(col - num.rstart);
+      else ++split.offdiag[i], split.ocols.push_back(col);
+    }
   }
   PetscFunctionReturn(0);
 }
@@ -246,22 +268,9 @@ PetscErrorCode CreateStiffnessMatrix(const Space &space, Mat *A)
   PetscCall(OwnershipRanges(comm, space.numOwned, num.ranges));
   num.rstart = num.ranges[rank], num.rend = num.ranges[rank + 1];
   PetscCall(GlobalIndices(space, num.global));
-  // The rows' columns, split into those of the diagonal block (numbered from the first owned one) and of
-  // the off-diagonal block (global until the assembly compacts them), each row sorted. The rows arrive in
-  // the order of their local DOFs, which the global numbering of the owned ones follows.
-  std::vector<PetscInt> diag(space.numOwned, 0), offdiag(space.numOwned, 0), dcols, ocols;
-  dcols.reserve(space.numOwned * (space.element == Element::CR ? 2 * space.Nb() - 1 : (space.dim == 2 ? 7 : 15)));
-  PetscInt   expected = 0;
-  const auto row      = [&](PetscInt i, const PetscInt *cols, PetscInt n) {
-    expected += i != expected ? space.numOwned + 1 : 1; // a row out of order makes expected > numOwned
-    for (PetscInt k = 0; k < n; ++k) {
-      if (num.Owned(cols[k])) ++diag[i], dcols.push_back(cols[k] - num.rstart);
-      else ++offdiag[i], ocols.push_back(cols[k]);
-    }
-  };
-  if (space.element == Element::CR) PetscCall(ForEachRowCR(comm, space, num, row));
-  else PetscCall(ForEachRowP1(comm, space, num, row));
-  PetscCheck(expected == space.numOwned, PETSC_COMM_SELF, PETSC_ERR_PLIB, "the owned DOFs are not numbered in local order");
+  Split split;
+  if (space.element == Element::CR) PetscCall(SplitRowsCR(comm, space, num, split));
+  else PetscCall(SplitRowsP1(comm, space, num, split));
   PetscCall(MatCreate(comm, A));
   PetscCall(MatSetSizes(*A, space.numOwned, space.numOwned, space.numGlobal, space.numGlobal));
   PetscCall(MatSetType(*A, MATAIJ));
@@ -269,15 +278,15 @@ PetscErrorCode CreateStiffnessMatrix(const Space &space, Mat *A)
   PetscBool aij;
   PetscCall(PetscObjectTypeCompare((PetscObject)*A, size == 1 ? MATSEQAIJ : MATMPIAIJ, &aij));
   PetscCheck(aij, comm, PETSC_ERR_SUP, "the stiffness matrix must be of type aij (-mat_type)");
-  PetscCall(MatXAIJSetPreallocation(*A, 1, diag.data(), offdiag.data(), NULL, NULL));
+  PetscCall(MatXAIJSetPreallocation(*A, 1, split.diag.data(), split.offdiag.data(), NULL, NULL));
   // The rows complete from the start: StiffnessFill adds into their values, and no insertion searches
   // and shifts a growing row.
-  if (size == 1) PetscCall(MatSeqAIJSetColumnIndices(*A, dcols.data()));
+  if (size == 1) PetscCall(MatSeqAIJSetColumnIndices(*A, split.dcols.data()));
   else {
     Mat Ad, Ao;
     PetscCall(MatMPIAIJGetSeqAIJ(*A, &Ad, &Ao, NULL));
-    PetscCall(MatSeqAIJSetColumnIndices(Ad, dcols.data()));
-    PetscCall(MatSeqAIJSetColumnIndices(Ao, ocols.data()));
+    PetscCall(MatSeqAIJSetColumnIndices(Ad, split.dcols.data()));
+    PetscCall(MatSeqAIJSetColumnIndices(Ao, split.ocols.data()));
   }
   PetscCall(MatSetLocalToGlobalMapping(*A, space.ltog, space.ltog));
   PetscCall(MatSetOption(*A, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
