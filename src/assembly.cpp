@@ -179,7 +179,7 @@ struct LoadBlock {
 
 // Cell loop: stiffness into A, f-load into the local load vector, and each cell's load into
 // sys.cellLoads when they are kept. Cells go in blocks, f evaluated once per block.
-static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, bool keepLoads, System &sys, PetscScalar *load, LoadRange &range, std::string &error)
+static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, bool keepLoads, System &sys, StiffnessFill &fill, PetscScalar *load, LoadRange &range, std::string &error)
 {
   const PetscInt         nb = space.Nb(), dim = space.dim, nq = sys.cellRule.Size();
   PetscReal              Ke[16], phi[4][4], vertex[4];
@@ -200,7 +200,7 @@ static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, 
       X[i] = space.X(c0 + i); // gathered once: every quadrature point needs it
       ComputeCellGeometry(dim, X[i], g[i]);
       ElementStiffness(space, c0 + i, sys.Kappa(c0 + i), g[i], Ke);
-      PetscCall(MatSetValuesLocal(sys.A, nb, space.Dofs(c0 + i), nb, space.Dofs(c0 + i), Ke, ADD_VALUES));
+      PetscCall(fill.Add(space.Dofs(c0 + i), Ke));
     }
     if (zeroLoad) continue;
     if (evaluate) block.Evaluate(space, problem, sys.cellRule, c0, m, X, error);
@@ -302,8 +302,11 @@ PetscErrorCode AssembleSystem(const Space &space, const Problem &problem, const 
   PetscCall(VecSet(loc, 0));
   PetscCall(VecGetArray(loc, &a));
   PetscCall(PetscLogEventBegin(cellLoop, 0, 0, 0, 0));
-  LoadRange range;
-  PetscCall(AssembleCells(space, problem, opts.keepCellLoads, sys, a, range, error));
+  LoadRange     range;
+  StiffnessFill fill;
+  PetscCall(fill.Begin(space, sys.A));
+  PetscCall(AssembleCells(space, problem, opts.keepCellLoads, sys, fill, a, range, error));
+  PetscCall(fill.End());
   if (problem.HasNeumann()) AssembleNeumann(space, problem, sys, a, range, error);
   PetscReal maxes[2] = {range.maxValue, range.maxIntegrand};
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, maxes, 2, MPIU_REAL, MPI_MAX, comm));

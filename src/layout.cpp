@@ -100,14 +100,20 @@ PetscErrorCode LayoutCheckPointOrder(PetscSection s, PetscInt start, PetscInt en
 
 PetscErrorCode LayoutCreateFromDM(DM dm, DM *layout)
 {
-  MPI_Comm     comm = PetscObjectComm((PetscObject)dm);
   PetscSection local, global;
-  PetscInt     pStart, pEnd;
-  PetscMPIInt  rank;
   PetscFunctionBeginUser;
-  PetscCallMPI(MPI_Comm_rank(comm, &rank));
   PetscCall(DMGetLocalSection(dm, &local));
   PetscCall(DMGetGlobalSection(dm, &global));
+  PetscCall(LayoutCreate(PetscObjectComm((PetscObject)dm), local, global, layout));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode LayoutCreate(MPI_Comm comm, PetscSection local, PetscSection global, DM *layout)
+{
+  PetscInt    pStart, pEnd;
+  PetscMPIInt rank;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
   auto *L = new Layout;
   PetscCall(PetscSectionGetStorageSize(local, &L->numLocal));
   PetscCall(PetscSectionGetConstrainedStorageSize(global, &L->numOwned));

@@ -113,72 +113,157 @@ void Space::FaceToCell(const BoundaryFace &bf, const PetscReal *mu, PetscReal *l
   for (PetscInt k = 0; k <= dim; ++k) lambda[k] = k == bf.opposite ? 0.0 : mu[n++];
 }
 
-static PetscErrorCode CreateSection(Space &s, PetscInt vStart, PetscInt vEnd, PetscInt fStart, PetscInt fEnd)
+// The section of a space's DOFs: one on each point of [start, end), the vertices (P1) or the faces (CR).
+// The chart covers the points that carry DOFs only, not the whole mesh: the local and the global section
+// keep two integers per point of their chart (2D P1: six mesh points per vertex).
+static PetscErrorCode DofSection(MPI_Comm comm, PetscInt start, PetscInt end, PetscSection *section)
+{
+  PetscFunctionBeginUser;
+  PetscCall(PetscSectionCreate(comm, section));
+  PetscCall(PetscSectionSetChart(*section, start, end));
+  for (PetscInt p = start; p < end; ++p) PetscCall(PetscSectionSetDof(*section, p, 1));
+  PetscCall(PetscSectionSetUp(*section));
+  PetscFunctionReturn(0);
+}
+
+// The points carrying the DOFs of element e on mesh.
+static PetscErrorCode DofPoints(DM mesh, Element e, PetscInt *start, PetscInt *end)
+{
+  PetscFunctionBeginUser;
+  if (e == Element::P1) PetscCall(DMPlexGetDepthStratum(mesh, 0, start, end));
+  else PetscCall(DMPlexGetHeightStratum(mesh, 1, start, end));
+  PetscFunctionReturn(0);
+}
+
+// The layout of the DOFs (Space::dm), their numbers and their global indices (Space::ltog), from the local
+// section and the global one PETSc makes from it and the mesh's point SF, as a DMPlex carrying the section
+// would (DMGetGlobalSection, DMGetLocalToGlobalMapping), without the DM: a clone of the mesh copies all its
+// labels, which the adaptive meshes keep as hash sets (half of a small step's set-up).
+static PetscErrorCode CreateLayout(Space &s, PetscInt start, PetscInt end)
+{
+  MPI_Comm     comm = PetscObjectComm((PetscObject)s.mesh);
+  PetscSection local, global;
+  PetscSF      pointSF;
+  PetscInt    *indices;
+  PetscFunctionBeginUser;
+  PetscCall(DofSection(comm, start, end, &local));
+  PetscCall(PetscSectionGetStorageSize(local, &s.numLocal));
+  // The cell tables and, for P1, Dofs() and ForEachBoundaryDof rely on DOF = p - start.
+  PetscCall(LayoutCheckPointOrder(local, start, end));
+  PetscCall(DMGetPointSF(s.mesh, &pointSF));
+  PetscCall(PetscSectionCreateGlobalSection(local, pointSF, PETSC_FALSE, PETSC_FALSE, &global));
+  PetscCall(PetscSectionGetConstrainedStorageSize(global, &s.numOwned));
+  PetscCallMPI(MPI_Allreduce(&s.numOwned, &s.numGlobal, 1, MPIU_INT, MPI_SUM, comm));
+  PetscCall(LayoutCreate(comm, local, global, &s.dm));
+  // A DOF another rank owns has the offset -(its global index + 1).
+  PetscCall(PetscMalloc1(s.numLocal, &indices));
+  for (PetscInt p = start; p < end; ++p) {
+    PetscInt off;
+    PetscCall(PetscSectionGetOffset(global, p, &off));
+    indices[p - start] = off >= 0 ? off : -(off + 1);
+  }
+  PetscCall(ISLocalToGlobalMappingCreate(comm, 1, s.numLocal, indices, PETSC_OWN_POINTER, &s.ltog));
+  PetscCall(PetscSectionDestroy(&global));
+  PetscCall(PetscSectionDestroy(&local));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SpaceSectionDM(const Space &s, DM *dm)
 {
   PetscSection section;
+  PetscInt     start, end;
   PetscFunctionBeginUser;
-  PetscCall(PetscSectionCreate(PetscObjectComm((PetscObject)s.mesh), &section));
-  // The chart covers the points that carry DOFs only, not the whole mesh: the local and the global
-  // section keep two integers per point of their chart (2D P1: six mesh points per vertex).
-  const PetscInt start = s.element == Element::P1 ? vStart : fStart, end = s.element == Element::P1 ? vEnd : fEnd;
-  PetscCall(PetscSectionSetChart(section, start, end));
-  for (PetscInt p = start; p < end; ++p) PetscCall(PetscSectionSetDof(section, p, 1));
-  PetscCall(PetscSectionSetUp(section));
-  PetscCall(PetscSectionGetStorageSize(section, &s.numLocal));
-  // The cell tables and, for P1, Dofs() and ForEachBoundaryDof rely on DOF = p - start.
-  PetscCall(LayoutCheckPointOrder(section, start, end));
-  PetscCall(DMSetLocalSection(s.mesh, section));
+  PetscCheck(s.mesh, PETSC_COMM_SELF, PETSC_ERR_ORDER, "the space's mesh was released");
+  PetscCall(DMClone(s.mesh, dm));
+  PetscCall(DofPoints(*dm, s.element, &start, &end));
+  PetscCall(DofSection(PetscObjectComm((PetscObject)*dm), start, end, &section));
+  PetscCall(DMSetLocalSection(*dm, section));
   PetscCall(PetscSectionDestroy(&section));
-  PetscCall(DMSetMatType(s.mesh, MATAIJ));
-  PetscSection global;
-  PetscCall(DMGetGlobalSection(s.mesh, &global));
-  PetscCall(PetscSectionGetConstrainedStorageSize(global, &s.numOwned));
-  PetscCallMPI(MPI_Allreduce(&s.numOwned, &s.numGlobal, 1, MPIU_INT, MPI_SUM, PetscObjectComm((PetscObject)s.mesh)));
+  PetscCall(DMSetMatType(*dm, MATAIJ));
+  PetscFunctionReturn(0);
+}
+
+// The vertices of every face (dim per face, in no particular order), from [fStart, fEnd) in order: the cell
+// tables look up each face twice, once from each of its cells, and a face's vertices then cost a table
+// read where CellVertices walks the cones down to the vertices again (ten cone look-ups per tetrahedron).
+static PetscErrorCode FaceVertices(DM dm, PetscInt dim, PetscInt fStart, PetscInt fEnd, std::vector<PetscInt> &fv)
+{
+  PetscFunctionBeginUser;
+  fv.resize((size_t)(fEnd - fStart) * dim);
+  for (PetscInt f = fStart; f < fEnd; ++f) {
+    const PetscInt *cone;
+    PetscInt       *v = &fv[(size_t)(f - fStart) * dim];
+    PetscCall(DMPlexGetCone(dm, f, &cone));
+    if (dim == 2) {
+      v[0] = cone[0], v[1] = cone[1];
+      continue;
+    }
+    const PetscInt *e0, *e1;
+    PetscCall(DMPlexGetCone(dm, cone[0], &e0));
+    PetscCall(DMPlexGetCone(dm, cone[1], &e1));
+    v[0] = e0[0], v[1] = e0[1], v[2] = e1[0] == e0[0] || e1[0] == e0[1] ? e1[1] : e1[0];
+  }
   PetscFunctionReturn(0);
 }
 
 // Cell tables: vertices, DOFs and Cell Sets values of each cell, and the vertex coordinates.
-static PetscErrorCode BuildCellTables(Space &s, PetscInt vEnd)
+static PetscErrorCode BuildCellTables(Space &s, PetscInt vEnd, PetscInt fStart, PetscInt fEnd)
 {
   Vec                coords;
   DM                 cdm;
-  PetscSection       csec, section;
+  PetscSection       csec;
   const PetscScalar *xa;
   DMLabel            cellSets;
   std::string        problem;
   PetscFunctionBeginUser;
-  const PetscInt nb = s.dim + 1, nc = s.NumCells();
-  PetscCall(DMGetLocalSection(s.mesh, &section));
-  PetscInt dofStart;
-  PetscCall(PetscSectionGetChart(section, &dofStart, NULL));
+  const PetscInt nb = s.dim + 1, nc = s.NumCells(), dim = s.dim;
   PetscCall(DMGetCoordinatesLocal(s.mesh, &coords));
   PetscCall(DMGetCoordinateDM(s.mesh, &cdm));
   PetscCall(DMGetLocalSection(cdm, &csec));
   PetscCall(DMGetLabel(s.mesh, "Cell Sets", &cellSets));
   PetscCall(VecGetArrayRead(coords, &xa));
-  s.vertX.resize((vEnd - s.vStart) * s.dim);
+  s.vertX.resize((vEnd - s.vStart) * dim);
   for (PetscInt v = s.vStart; v < vEnd; ++v) {
     PetscInt off;
     PetscCall(PetscSectionGetOffset(csec, v, &off));
-    for (PetscInt d = 0; d < s.dim; ++d) s.vertX[(v - s.vStart) * s.dim + d] = PetscRealPart(xa[off + d]);
+    for (PetscInt d = 0; d < dim; ++d) s.vertX[(v - s.vStart) * dim + d] = PetscRealPart(xa[off + d]);
   }
   PetscCall(VecRestoreArrayRead(coords, &xa));
+  std::vector<PetscInt> fv;
+  PetscCall(FaceVertices(s.mesh, dim, fStart, fEnd, fv));
   if (s.element == Element::CR) s.cellDof.resize(nc * nb);
   s.cellVert.resize(nc * nb);
-  if (cellSets) s.cellSet.assign(nc, -1);
   for (PetscInt c = 0; c < nc; ++c) {
     const PetscInt  cell = s.cStart + c;
     const PetscInt *cone;
-    PetscInt        verts[4];
-    PetscCall(CellVertices(s.mesh, cell, s.dim, verts));
     PetscCall(DMPlexGetCone(s.mesh, cell, &cone));
-    for (PetscInt i = 0; i < nb; ++i) {
-      if (s.element == Element::CR) s.cellDof[c * nb + i] = cone[i] - dofStart; // see CreateSection
-      s.cellVert[c * nb + i] = verts[i] - s.vStart;
+    // Vertex k is the one not on face k: vertex 0 the one of face 1 not on face 0, vertex k >= 1 the one
+    // of face 0 not on face k (face k holds vertex 0 and all of face 0's but one).
+    const PetscInt *F0 = &fv[(size_t)(cone[0] - fStart) * dim], *F1 = &fv[(size_t)(cone[1] - fStart) * dim];
+    const auto      on = [dim](const PetscInt *F, PetscInt v) {
+      bool in = false;
+      for (PetscInt i = 0; i < dim; ++i) in = in || F[i] == v;
+      return in;
+    };
+    PetscInt *verts = &s.cellVert[c * nb];
+    for (PetscInt i = 0; i < dim; ++i)
+      if (!on(F0, F1[i])) verts[0] = F1[i];
+    for (PetscInt k = 1; k <= dim; ++k) {
+      const PetscInt *Fk = &fv[(size_t)(cone[k] - fStart) * dim];
+      for (PetscInt i = 0; i < dim; ++i)
+        if (!on(Fk, F0[i])) verts[k] = F0[i];
     }
-    if (cellSets) PetscCall(DMLabelGetValue(cellSets, cell, &s.cellSet[c]));
+    for (PetscInt i = 0; i < nb; ++i) {
+      if (s.element == Element::CR) s.cellDof[c * nb + i] = cone[i] - fStart; // DOF = p - start, see CreateLayout
+      verts[i] -= s.vStart;
+    }
     const Space::Coords X = s.X(c);
-    if (!SimplexIsValid(s.dim, X) && problem.empty()) problem = Format("mesh: cell %d (near (%g, %g)) is degenerate", (int)cell, (double)X[0], (double)X[1]);
+    if (!SimplexIsValid(dim, X) && problem.empty()) problem = Format("mesh: cell %d (near (%g, %g)) is degenerate", (int)cell, (double)X[0], (double)X[1]);
+  }
+  // Cell by cell: the adaptive meshes hold the label as a hash set, which a stratum's IS would first sort.
+  if (cellSets) {
+    s.cellSet.resize(nc);
+    for (PetscInt c = 0; c < nc; ++c) PetscCall(DMLabelGetValue(cellSets, s.cStart + c, &s.cellSet[c]));
   }
   PetscCall(CheckAll(PetscObjectComm((PetscObject)s.mesh), problem.empty(), problem));
   PetscFunctionReturn(0);
@@ -196,11 +281,9 @@ static std::string PointText(const Space &s, PetscInt p)
 static PetscErrorCode CollectBoundary(Space &s, const Problem &problem)
 {
   MPI_Comm comm = PetscObjectComm((PetscObject)s.mesh);
-  DMLabel  faceSets, boundary;
+  DMLabel  faceSets;
   PetscFunctionBeginUser;
   PetscCall(DMGetLabel(s.mesh, "Face Sets", &faceSets));
-  PetscCall(DMLabelCreate(PETSC_COMM_SELF, "boundary", &boundary));
-  PetscCall(DMPlexMarkBoundaryFaces(s.mesh, 1, boundary));
   const std::pair<const char *, const std::vector<PetscInt> *> parts[] = {{"-bc_dirichlet", &problem.dirichlet}, {"-bc_neumann", &problem.neumann}, {"-bc_contact", &problem.contact}};
   // Each face carries at most one condition: a face in two named parts (a Gmsh line in two physical
   // groups, say) would get its Neumann integral twice, or be both Dirichlet and contact.
@@ -211,11 +294,11 @@ static PetscErrorCode CollectBoundary(Space &s, const Problem &problem)
     for (PetscInt value : *part.second) {
       PetscCall(LabelFaces(s.mesh, faceSets, value, faces));
       for (const PetscInt f : faces) {
-        PetscInt        isBoundary, nsupp;
+        PetscInt        nsupp;
         const PetscInt *supp, *cone;
-        PetscCall(DMLabelGetValue(boundary, f, &isBoundary));
+        // A boundary face has one cell, as DMPlexMarkBoundaryFaces decides it, without marking them all.
         PetscCall(DMPlexGetSupportSize(s.mesh, f, &nsupp));
-        if (isBoundary != 1 || nsupp != 1) {
+        if (nsupp != 1) {
           if (interior.empty()) interior = Format("option %s: boundary part %d contains interior faces", part.first, (int)value);
           continue;
         }
@@ -239,7 +322,6 @@ static PetscErrorCode CollectBoundary(Space &s, const Problem &problem)
       if (global == 0) SIGNORINI_INPUT_ERROR(comm, "%s", MissingPartMessage(part.first, value).c_str());
     }
   }
-  PetscCall(DMLabelDestroy(&boundary));
   PetscCall(CheckAll(comm, interior.empty(), interior));
   PetscCall(CheckAll(comm, overlap.empty(), overlap));
   PetscFunctionReturn(0);
@@ -470,13 +552,14 @@ static PetscErrorCode SpaceEvents(PetscLogEvent ev[4])
   PetscFunctionReturn(0);
 }
 
-// The mesh clone, its strata and the section of the DOFs with their layout: the start of both ways to create a space.
+// The mesh, its strata and the section of the DOFs with their layout: the start of both ways to create a space.
 static PetscErrorCode SpaceCreateLayout(DM mesh, Element element, Space &s, PetscInt &vEnd, PetscInt &fStart, PetscInt &fEnd)
 {
   PetscInt vStart;
   PetscFunctionBeginUser;
-  PetscCall(DMClone(mesh, &s.mesh));
-  PetscCall(PetscObjectSetName((PetscObject)s.mesh, "mesh"));
+  // The mesh itself, not a clone: the space reads its topology only, and its section lives in the layout.
+  PetscCall(PetscObjectReference((PetscObject)mesh));
+  s.mesh = mesh;
   s.element = element;
   PetscCall(DMGetDimension(s.mesh, &s.dim));
   PetscCheck(s.dim == 2 || s.dim == 3, PetscObjectComm((PetscObject)mesh), PETSC_ERR_SUP, "only 2D and 3D simplex meshes are supported");
@@ -484,8 +567,7 @@ static PetscErrorCode SpaceCreateLayout(DM mesh, Element element, Space &s, Pets
   PetscCall(DMPlexGetHeightStratum(s.mesh, 1, &fStart, &fEnd));
   PetscCall(DMPlexGetHeightStratum(s.mesh, 0, &s.cStart, &s.cEnd));
   s.vStart = vStart;
-  PetscCall(CreateSection(s, vStart, vEnd, fStart, fEnd));
-  PetscCall(LayoutCreateFromDM(s.mesh, &s.dm));
+  PetscCall(CreateLayout(s, element == Element::P1 ? vStart : fStart, element == Element::P1 ? vEnd : fEnd));
   PetscFunctionReturn(0);
 }
 
@@ -499,7 +581,7 @@ PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Spa
   PetscCall(SpaceCreateLayout(mesh, element, s, vEnd, fStart, fEnd));
   PetscCall(PetscLogEventEnd(ev[0], 0, 0, 0, 0));
   PetscCall(PetscLogEventBegin(ev[1], 0, 0, 0, 0));
-  PetscCall(BuildCellTables(s, vEnd));
+  PetscCall(BuildCellTables(s, vEnd, fStart, fEnd));
   PetscCall(PetscLogEventEnd(ev[1], 0, 0, 0, 0));
   PetscCall(PetscLogEventBegin(ev[2], 0, 0, 0, 0));
   PetscCall(CollectBoundary(s, problem));
@@ -510,8 +592,6 @@ PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Spa
   PetscCall(ClassifyDofs(s, problem));
   if (problem.HasContact() && !problem.dirichlet.empty()) PetscCall(CheckObstacleMeetsDirichlet(s, problem));
   PetscCall(PetscLogEventEnd(ev[3], 0, 0, 0, 0));
-  PetscCall(DMGetLocalToGlobalMapping(s.mesh, &s.ltog));
-  PetscCall(PetscObjectReference((PetscObject)s.ltog));
   PetscFunctionReturn(0);
 }
 
@@ -538,8 +618,6 @@ PetscErrorCode SpaceCreateP1Of(DM mesh, const Space &cr, const Problem &problem,
   PetscCall(PetscLogEventBegin(ev[3], 0, 0, 0, 0));
   PetscCall(ClassifyDofs(s, problem));
   PetscCall(PetscLogEventEnd(ev[3], 0, 0, 0, 0));
-  PetscCall(DMGetLocalToGlobalMapping(s.mesh, &s.ltog));
-  PetscCall(PetscObjectReference((PetscObject)s.ltog));
   PetscFunctionReturn(0);
 }
 

@@ -196,8 +196,10 @@ static PetscErrorCode TestSpace(unit::Checker &ck, const SpaceCase &sc)
 
   // DOF -> mesh point, from the space's own section.
   PetscSection sec;
+  DM           sectionDM;
   PetscInt     pStart, pEnd, vStart, vEnd, fStart, fEnd;
-  PetscCall(DMGetLocalSection(space.mesh, &sec));
+  PetscCall(SpaceSectionDM(space, &sectionDM));
+  PetscCall(DMGetLocalSection(sectionDM, &sec));
   PetscCall(PetscSectionGetChart(sec, &pStart, &pEnd));
   PetscCall(DMPlexGetDepthStratum(space.mesh, 0, &vStart, &vEnd));
   PetscCall(DMPlexGetHeightStratum(space.mesh, 1, &fStart, &fEnd));
@@ -210,6 +212,7 @@ static PetscErrorCode TestSpace(unit::Checker &ck, const SpaceCase &sc)
     pointOf[off] = p;
   }
   ck.Check((PetscInt)pointOf.size() == space.numLocal, tag + " one point per local DOF", "%zu points, numLocal %d", pointOf.size(), (int)space.numLocal);
+  PetscCall(DMDestroy(&sectionDM));
 
   const std::vector<PetscReal> dofPoint = DofPoints(space);
   double      basisErr = 0, dofPointErr = 0, symErr = 0, rowErr = 0, formulaErr = 0;

@@ -32,7 +32,10 @@ static PetscErrorCode ReferenceMatrix(const Space &space, const System &sys, Mat
   PetscReal      Ke[16];
   PetscInt       rstart;
   PetscFunctionBeginUser;
-  PetscCall(DMCreateMatrix(space.mesh, B));
+  DM sectionDM;
+  PetscCall(SpaceSectionDM(space, &sectionDM));
+  PetscCall(DMCreateMatrix(sectionDM, B));
+  PetscCall(DMDestroy(&sectionDM));
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
     CellGeometry g;
     ComputeCellGeometry(space.dim, space.X(c), g);

@@ -378,8 +378,10 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
   {
     PetscSection gs, ls;
     PetscInt     pStart, pEnd, rstart;
-    PetscCall(DMGetGlobalSection(fine.mesh, &gs));
-    PetscCall(DMGetLocalSection(fine.mesh, &ls));
+    DM           sectionDM; // the fine mesh with the space's section
+    PetscCall(SpaceSectionDM(fine, &sectionDM));
+    PetscCall(DMGetGlobalSection(sectionDM, &gs));
+    PetscCall(DMGetLocalSection(sectionDM, &ls));
     PetscCall(PetscSectionGetChart(ls, &pStart, &pEnd));
     PetscCall(VecGetOwnershipRange(uh, &rstart, NULL));
     for (PetscInt q = pStart; q < pEnd; ++q) {
@@ -390,6 +392,7 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
       PetscCall(PetscSectionGetOffset(ls, q, &loff));
       if (goff >= 0) ownedToLocal[goff - rstart] = loff;
     }
+    PetscCall(DMDestroy(&sectionDM));
   }
   PetscReal dirErr = 0, minGap = PETSC_MAX_REAL, forcedErr = 0, otherErr = 0, freeErr = 0;
   PetscInt  nForced = 0, nOther = 0, nBelow = 0;

@@ -13,8 +13,11 @@
 namespace signorini {
 
 // A DMShell with the local and global layout and the local/global exchange of `dm`, a DM with a local
-// section (the space's DMPlex clone). Collective.
+// section (e.g. output fields on a DMPlex clone). Collective.
 PetscErrorCode LayoutCreateFromDM(DM dm, DM *layout);
+// The same from the two sections themselves (the global one as PetscSectionCreateGlobalSection makes it),
+// without a DM that carries them. Collective on comm.
+PetscErrorCode LayoutCreate(MPI_Comm comm, PetscSection local, PetscSection global, DM *layout);
 
 // Checks that section s gives the points [start, end) one DOF each and nothing else, in point order, so
 // that the local entry of point p is p - start (what the cell tables and the output's derived fields use

@@ -1,5 +1,5 @@
 // The discrete space: conforming P1 (one DOF per vertex) or Crouzeix-Raviart (one DOF per face, i.e. per
-// height-1 point), laid out by a PetscSection on a clone of the mesh DM, with the DOFs on Gamma_D and on
+// height-1 point), laid out by a PetscSection on the mesh's DOF points, with the DOFs on Gamma_D and on
 // Gamma_C classified. Its vectors and their exchange go through a layout DM that needs no mesh (layout.h),
 // so the mesh can be freed once the tables are built (SpaceReleaseMesh).
 //
@@ -99,7 +99,7 @@ struct SharedFace {
 enum DofKind : char { kFree = 0, kDirichlet = 1, kContact = 2 };
 
 struct Space {
-  DM       mesh = nullptr; // clone of the mesh DM carrying this space's local section; null once released
+  DM       mesh = nullptr; // the mesh (a reference, its topology only: the DOF layout is in dm); null once released
   DM       dm   = nullptr; // the DOF layout: creates the local and global vectors, exchanges between them
   Element  element = Element::CR;
   PetscInt dim = 2, cStart = 0, cEnd = 0, vStart = 0;
@@ -213,10 +213,14 @@ PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Spa
 // adapt.h), and without SpaceCreate's checks of the mesh and the data, which `of` passed.
 PetscErrorCode SpaceCreateP1Of(DM mesh, const Space &of, const Problem &problem, Space &space);
 PetscErrorCode SpaceDestroy(Space &space);
-// Drops the space's mesh clone, so that once the caller drops its own references the DMPlex is freed.
+// Drops the space's reference to the mesh, so that once the caller drops its own the DMPlex is freed.
 // Everything but the HDF5 output works on the tables and the layout (assembly, solve, KKT, energy, errors,
 // prolongation), so it may be called right after SpaceCreate.
 PetscErrorCode SpaceReleaseMesh(Space &space);
+// A clone of the space's mesh carrying the space's local section (DOF of point p at p - start) and mat
+// type aij, for comparisons with PETSc's own DMPlex machinery (DMCreateMatrix, DMGlobalToLocal): the space
+// itself needs no such DM. Needs the mesh (before SpaceReleaseMesh).
+PetscErrorCode SpaceSectionDM(const Space &space, DM *dm);
 // The DM keeps the work vectors of DMGetLocalVector/DMGetGlobalVector after they are restored, for the
 // next caller; at 10^7 DOFs each is 80 MB that should not stay through a solve. Frees them.
 PetscErrorCode SpaceReleaseWorkVectors(const Space &space);
