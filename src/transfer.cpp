@@ -32,19 +32,21 @@ void ForEachFineDof(const Space &coarse, PetscInt numFine, const std::vector<Pet
   }
 }
 
-// Whether the point of barycentric coordinates lambda in coarse cell pc lies on active coarse contact
-// DOFs only (aU, aL: local arrays of uH and its lower bound; tol: ActiveTolerance).
+// Whether the point of barycentric coordinates lambda in coarse cell pc lies on coarse DOFs (at least
+// one) that are all active contact DOFs (aU, aL: local arrays of uH and its lower bound; tol:
+// ActiveTolerance). A CR point inside the cell lies on none (a fine contact DOF always lies on one).
 bool OnActiveContact(const Space &coarse, PetscInt pc, const PetscReal *lambda, const PetscScalar *aU, const PetscScalar *aL, PetscReal tol)
 {
   const PetscReal eps    = 1e-10;
-  bool            active = true;
+  bool            active = true, onAny = false;
   for (PetscInt j = 0; j < coarse.Nb(); ++j) {
     // P1: vertex j supports the point if lambda_j > 0; CR: face j contains it if lambda_j = 0.
     const bool     on = coarse.element == Element::P1 ? lambda[j] > eps : std::fabs(lambda[j]) < eps;
     const PetscInt J  = coarse.Dofs(pc)[j];
     if (on) active = active && coarse.kindLocal[J] == kContact && PetscRealPart(aU[J] - aL[J]) <= tol;
+    onAny = onAny || on;
   }
-  return active;
+  return active && onAny;
 }
 
 // The coarse vectors as local arrays, for the evaluation at fine DOF points.
@@ -195,41 +197,38 @@ PetscErrorCode TransferActiveSet(const Space &coarse, Vec uH, Vec lowerH, const 
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode MeshCells::Init(DM mesh)
+{
+  PetscFunctionBeginUser;
+  PetscCall(reader_.Init(mesh));
+  PetscCall(VertexCoordinates(mesh, x_));
+  dim_ = reader_.Dim();
+  PetscCall(DMPlexGetHeightStratum(mesh, 0, &cStart_, &cEnd_));
+  PetscCall(DMPlexGetDepthStratum(mesh, 0, &vStart_, NULL));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode EvaluateOnCells(const Space &coarse, Vec uH, Vec lowerH, DM fine, const std::vector<PetscInt> &parent, CellValues &cv)
 {
-  CoarseArrays       H(coarse);
-  PetscInt           cStart, cEnd, vStart;
-  Vec                coords;
-  DM                 cdm;
-  PetscSection       csec;
-  const PetscScalar *xa;
+  CoarseArrays H(coarse);
+  MeshCells    cells;
   PetscFunctionBeginUser;
-  const PetscInt dim = coarse.dim, nb = dim + 1;
-  PetscCall(DMPlexGetHeightStratum(fine, 0, &cStart, &cEnd));
-  PetscCall(DMPlexGetDepthStratum(fine, 0, &vStart, NULL));
-  PetscCheck((PetscInt)parent.size() == cEnd - cStart, PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "parent map has %d entries for %d fine cells", (int)parent.size(), (int)(cEnd - cStart));
-  // The fine cells' vertex coordinates, in the order of the cell tables a space on this mesh will have.
-  std::vector<PetscReal> X(nb * dim * (cEnd - cStart)); // nb * dim per cell, not a 12-entry Coords
-  PetscCall(DMGetCoordinatesLocal(fine, &coords));
-  PetscCall(DMGetCoordinateDM(fine, &cdm));
-  PetscCall(DMGetLocalSection(cdm, &csec));
-  PetscCall(VecGetArrayRead(coords, &xa));
-  for (PetscInt c = cStart; c < cEnd; ++c) {
-    PetscInt verts[4];
-    PetscCall(CellVertices(fine, c, dim, verts));
-    for (PetscInt k = 0; k < nb; ++k) {
-      PetscInt off;
-      PetscCall(PetscSectionGetOffset(csec, verts[k], &off));
-      for (PetscInt d = 0; d < dim; ++d) X[(c - cStart) * nb * dim + k * dim + d] = PetscRealPart(xa[off + d]);
-    }
-  }
-  PetscCall(VecRestoreArrayRead(coords, &xa));
+  const PetscInt nb = coarse.dim + 1;
+  PetscCall(cells.Init(fine));
+  PetscCheck((PetscInt)parent.size() == cells.NumCells(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "parent map has %d entries for %d fine cells", (int)parent.size(), (int)cells.NumCells());
   PetscCall(H.Get(uH, lowerH));
   cv.nb = nb;
-  cv.data.assign((cEnd - cStart) * 2 * nb, 0);
-  ForEachFineDof(coarse, cEnd - cStart, parent, [&](PetscInt c) { return &X[c * nb * dim]; }, [&](PetscInt c, PetscInt i, PetscInt pc, const PetscReal *lambda) {
+  cv.data.assign(cells.NumCells() * 2 * nb, 0);
+  PetscInt checked = -1;    // the last parent looked at for contact DOFs,
+  bool     contact = false; // whether it has any (most have none: their children's flags stay 0)
+  ForEachFineDof(coarse, cells.NumCells(), parent, [&](PetscInt c) { return cells.X(c); }, [&](PetscInt c, PetscInt i, PetscInt pc, const PetscReal *lambda) {
     cv.data[c * 2 * nb + i] = coarse.Value(pc, H.u, lambda);
-    if (lowerH) cv.data[c * 2 * nb + nb + i] = OnActiveContact(coarse, pc, lambda, H.u, H.lower, H.tol);
+    if (!lowerH) return;
+    if (pc != checked) {
+      checked = pc, contact = false;
+      for (PetscInt j = 0; j < nb; ++j) contact = contact || coarse.kindLocal[coarse.Dofs(pc)[j]] == kContact;
+    }
+    if (contact) cv.data[c * 2 * nb + nb + i] = OnActiveContact(coarse, pc, lambda, H.u, H.lower, H.tol);
   });
   PetscCall(H.Restore());
   PetscFunctionReturn(0);
