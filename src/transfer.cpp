@@ -7,29 +7,44 @@
 namespace signorini {
 
 namespace {
+// How many fine cells ahead the loops over them start loading the coarse data of their parents.
+constexpr PetscInt kAhead = 16;
+
 // Calls f(c, i, pc, lambda) for every DOF i of every fine cell c, with pc its parent and lambda the
 // barycentric coordinates of the DOF's point in pc; X(c) gives the vertex coordinates of fine cell c
-// (anything SimplexPoint reads: a Space::Coords or a pointer).
-template <class Coords, class F>
-void ForEachFineDof(const Space &coarse, PetscInt numFine, const std::vector<PetscInt> &parent, Coords X, F f)
+// (anything SimplexPoint reads: a Space::Coords or a pointer). The dimension D is a constant here, so
+// the small loops of the geometry unroll (the same operations in the same order as with dim).
+template <int D, class Coords, class F>
+void ForEachFineDofD(const Space &coarse, PetscInt numFine, const std::vector<PetscInt> &parent, Coords X, F f)
 {
-  const PetscInt dim = coarse.dim;
-  PetscReal      lambda[4], mu[4][4], x[3];
-  CellGeometry   g;
-  PetscInt       last = -1;
-  for (PetscInt i = 0; i <= dim; ++i) DofLambda(coarse.element, dim, i, mu[i]);
-  Space::Coords  XH;
+  PetscReal     lambda[4], mu[4][4], x[3];
+  CellGeometry  g;
+  PetscInt      last = -1;
+  const bool    p1 = coarse.element == Element::P1;
+  Space::Coords XH;
+  for (PetscInt i = 0; i <= D; ++i) DofLambda(coarse.element, D, i, mu[i]);
   for (PetscInt c = 0; c < numFine; ++c) {
     const PetscInt pc = parent[c];
     const auto    &Xh = X(c);
+    // The vertex coordinates of the parent some cells ahead, whose vertices lie anywhere in vertX.
+    if (c + kAhead < numFine)
+      for (PetscInt k = 0; k <= D; ++k) __builtin_prefetch(&coarse.vertX[coarse.cellVert[parent[c + kAhead] * (D + 1) + k] * D]);
     // The children of a parent come one after the other: its vertices and geometry once for all of them.
-    if (pc != last) XH = coarse.X(pc), ComputeCellGeometry(dim, XH, g), last = pc;
-    for (PetscInt i = 0; i <= dim; ++i) {
-      SimplexPoint(dim, Xh, mu[i], x);
-      Barycentric(dim, g, XH, x, lambda);
+    if (pc != last) XH = coarse.X(pc), ComputeCellGeometry(D, XH, g), last = pc;
+    for (PetscInt i = 0; i <= D; ++i) {
+      // A P1 DOF's point is its vertex: SimplexPoint would give exactly its coordinates (1 x X_i + 0 x ...).
+      const PetscReal *xi = p1 ? &Xh[i * D] : x;
+      if (!p1) SimplexPoint(D, Xh, mu[i], x);
+      Barycentric(D, g, XH, xi, lambda);
       f(c, i, pc, lambda);
     }
   }
+}
+template <class Coords, class F>
+void ForEachFineDof(const Space &coarse, PetscInt numFine, const std::vector<PetscInt> &parent, Coords X, F f)
+{
+  if (coarse.dim == 2) ForEachFineDofD<2>(coarse, numFine, parent, X, f);
+  else ForEachFineDofD<3>(coarse, numFine, parent, X, f);
 }
 
 // Whether the point of barycentric coordinates lambda in coarse cell pc lies on coarse DOFs (at least
@@ -222,6 +237,8 @@ PetscErrorCode EvaluateOnCells(const Space &coarse, Vec uH, Vec lowerH, DM fine,
   PetscInt checked = -1;    // the last parent looked at for contact DOFs,
   bool     contact = false; // whether it has any (most have none: their children's flags stay 0)
   ForEachFineDof(coarse, cells.NumCells(), parent, [&](PetscInt c) { return cells.X(c); }, [&](PetscInt c, PetscInt i, PetscInt pc, const PetscReal *lambda) {
+    if (i == 0 && c + kAhead < cells.NumCells()) // the parent's values some cells ahead (its DOFs lie anywhere in uH)
+      for (PetscInt j = 0; j < nb; ++j) __builtin_prefetch(&H.u[coarse.Dofs(parent[c + kAhead])[j]]);
     cv.data[c * 2 * nb + i] = coarse.Value(pc, H.u, lambda);
     if (!lowerH) return;
     if (pc != checked) {
