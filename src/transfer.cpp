@@ -143,8 +143,8 @@ PetscErrorCode SetFlaggedActive(const Space &fine, Vec flag, Vec lowerh, Vec uh)
 // Local work vectors of the fine space, zeroed, with their arrays.
 struct LocalSums {
   const Space &space;
-  Vec          vec[2] = {nullptr, nullptr};
-  PetscScalar *a[2]   = {nullptr, nullptr};
+  Vec          vec[3] = {nullptr, nullptr, nullptr};
+  PetscScalar *a[3]   = {nullptr, nullptr, nullptr};
   explicit LocalSums(const Space &s) : space(s) {}
   PetscErrorCode Get(int n)
   {
@@ -159,14 +159,14 @@ struct LocalSums {
   PetscErrorCode RestoreArrays()
   {
     PetscFunctionBeginUser;
-    for (int k = 0; k < 2; ++k)
+    for (int k = 0; k < 3; ++k)
       if (vec[k]) PetscCall(VecRestoreArray(vec[k], &a[k]));
     PetscFunctionReturn(0);
   }
   PetscErrorCode Restore()
   {
     PetscFunctionBeginUser;
-    for (int k = 0; k < 2; ++k)
+    for (int k = 0; k < 3; ++k)
       if (vec[k]) PetscCall(DMRestoreLocalVector(space.dm, &vec[k]));
     PetscFunctionReturn(0);
   }
@@ -298,30 +298,21 @@ PetscErrorCode MigrateCellValues(DM from, PetscSF migration, DM to, CellValues &
 
 PetscErrorCode ApplyCellValues(const Space &fine, const CellValues &cv, Vec lowerh, Vec uh)
 {
-  LocalSums s(fine); // sum, count; then flags
+  LocalSums s(fine); // sum, count and, with lowerh, flags: one pass over the cells
   PetscFunctionBeginUser;
   const PetscInt nb = fine.Nb();
   PetscCheck(cv.nb == nb && (PetscInt)cv.data.size() == 2 * nb * fine.NumCells(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "%d cell values for %d cells", (int)cv.data.size(), (int)fine.NumCells());
-  PetscCall(s.Get(2));
+  PetscCall(s.Get(lowerh ? 3 : 2));
   for (PetscInt c = 0; c < fine.NumCells(); ++c)
     for (PetscInt i = 0; i < nb; ++i) {
       const PetscInt dof = fine.Dofs(c)[i];
       s.a[0][dof] += cv.data[c * 2 * nb + i];
       s.a[1][dof] += 1;
+      if (lowerh && fine.kindLocal[dof] == kContact && cv.data[c * 2 * nb + nb + i] > 0) s.a[2][dof] = 1;
     }
   PetscCall(s.RestoreArrays());
   PetscCall(AverageToGlobal(fine, s.vec[0], s.vec[1], uh));
-  if (lowerh) {
-    PetscCall(VecSet(s.vec[0], 0));
-    PetscCall(VecGetArray(s.vec[0], &s.a[0]));
-    for (PetscInt c = 0; c < fine.NumCells(); ++c)
-      for (PetscInt i = 0; i < nb; ++i) {
-        const PetscInt dof = fine.Dofs(c)[i];
-        if (fine.kindLocal[dof] == kContact && cv.data[c * 2 * nb + nb + i] > 0) s.a[0][dof] = 1;
-      }
-    PetscCall(VecRestoreArray(s.vec[0], &s.a[0]));
-    PetscCall(SetFlaggedActive(fine, s.vec[0], lowerh, uh));
-  }
+  if (lowerh) PetscCall(SetFlaggedActive(fine, s.vec[2], lowerh, uh));
   PetscCall(s.Restore());
   PetscFunctionReturn(0);
 }
