@@ -287,35 +287,28 @@ PetscErrorCode P1ToCRMatrix(const Space &p1, const Space &cr, Mat *Q)
 
 PetscErrorCode RecordP1Transfer(const Space &coarse, DM fine, const std::vector<PetscInt> &parent, TransferRecord &r)
 {
-  PetscInt           cStart, cEnd;
-  Vec                coords;
-  DM                 cdm;
-  PetscSection       csec;
-  const PetscScalar *xa;
-  const PetscInt    *gc;
-  PetscLogEvent      event;
+  MeshCells       cells;
+  const PetscInt *gc;
+  PetscLogEvent   event;
   PetscFunctionBeginUser;
   PetscCall(TransferEventGet(kRecordP1, &event));
   PetscCall(PetscLogEventBegin(event, 0, 0, 0, 0));
   PetscCheck(coarse.element == Element::P1, PETSC_COMM_SELF, PETSC_ERR_ARG_INCOMP, "the recorded transfer is between P1 spaces");
   const PetscInt dim = coarse.dim, nb = dim + 1, stride = nb * (nb + 1);
-  PetscCall(DMPlexGetHeightStratum(fine, 0, &cStart, &cEnd));
-  PetscCheck((PetscInt)parent.size() == cEnd - cStart, PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "parent map has %d entries for %d fine cells", (int)parent.size(), (int)(cEnd - cStart));
-  PetscCall(DMGetCoordinatesLocal(fine, &coords));
-  PetscCall(DMGetCoordinateDM(fine, &cdm));
-  PetscCall(DMGetLocalSection(cdm, &csec));
-  PetscCall(VecGetArrayRead(coords, &xa));
+  PetscCall(cells.Init(fine));
+  const PetscInt n = cells.NumCells();
+  PetscCheck((PetscInt)parent.size() == n, PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "parent map has %d entries for %d fine cells", (int)parent.size(), (int)n);
   PetscCall(ISLocalToGlobalMappingGetIndices(coarse.ltog, &gc));
   r.cells.nb = stride / 2;
-  r.cells.data.resize((cEnd - cStart) * stride);
+  r.cells.data.resize(n * stride);
   PetscReal     lambda[4];
   Space::Coords XH;
   CellGeometry  g;
   PetscInt      last = -1; // the parent whose geometry g is: the children of a cell are consecutive
-  for (PetscInt c = cStart; c < cEnd; ++c) {
-    const PetscInt pc  = parent[c - cStart];
-    PetscReal     *rec = &r.cells.data[(c - cStart) * stride];
-    PetscInt       verts[4];
+  for (PetscInt c = 0; c < n; ++c) {
+    const PetscInt      pc  = parent[c];
+    PetscReal          *rec = &r.cells.data[c * stride];
+    const Space::Coords Xh  = cells.X(c);
     if (pc != last) {
       XH = coarse.X(pc);
       ComputeCellGeometry(dim, XH, g);
@@ -325,18 +318,12 @@ PetscErrorCode RecordP1Transfer(const Space &coarse, DM fine, const std::vector<
       const PetscInt J = coarse.Dofs(pc)[j];
       rec[j]           = coarse.kindLocal[J] == kDirichlet ? -1 : gc[J];
     }
-    PetscCall(CellVertices(fine, c, dim, verts));
     for (PetscInt k = 0; k < nb; ++k) {
-      PetscInt  off;
-      PetscReal x[3];
-      PetscCall(PetscSectionGetOffset(csec, verts[k], &off));
-      for (PetscInt d = 0; d < dim; ++d) x[d] = PetscRealPart(xa[off + d]);
-      Barycentric(dim, g, XH, x, lambda);
+      Barycentric(dim, g, XH, &Xh.x[k * dim], lambda);
       for (PetscInt j = 0; j < nb; ++j) rec[nb + k * nb + j] = std::fabs(lambda[j]) >= 1e-12 ? lambda[j] : 0;
     }
   }
   PetscCall(ISLocalToGlobalMappingRestoreIndices(coarse.ltog, &gc));
-  PetscCall(VecRestoreArrayRead(coords, &xa));
   r.coarseOwned  = coarse.numOwned;
   r.coarseGlobal = coarse.numGlobal;
   PetscCall(PetscLogEventEnd(event, 0, 0, 0, 0));

@@ -7,44 +7,61 @@
 namespace signorini {
 
 namespace {
+// How many fine cells ahead the loops over them start loading the coarse data of their parents.
+constexpr PetscInt kAhead = 16;
+
 // Calls f(c, i, pc, lambda) for every DOF i of every fine cell c, with pc its parent and lambda the
 // barycentric coordinates of the DOF's point in pc; X(c) gives the vertex coordinates of fine cell c
-// (anything SimplexPoint reads: a Space::Coords or a pointer).
-template <class Coords, class F>
-void ForEachFineDof(const Space &coarse, PetscInt numFine, const std::vector<PetscInt> &parent, Coords X, F f)
+// (anything SimplexPoint reads: a Space::Coords or a pointer). The dimension D is a constant here, so
+// the small loops of the geometry unroll (the same operations in the same order as with dim).
+template <int D, class Coords, class F>
+void ForEachFineDofD(const Space &coarse, PetscInt numFine, const std::vector<PetscInt> &parent, Coords X, F f)
 {
-  const PetscInt dim = coarse.dim;
-  PetscReal      lambda[4], mu[4][4], x[3];
-  CellGeometry   g;
-  PetscInt       last = -1;
-  for (PetscInt i = 0; i <= dim; ++i) DofLambda(coarse.element, dim, i, mu[i]);
-  Space::Coords  XH;
+  PetscReal     lambda[4], mu[4][4], x[3];
+  CellGeometry  g;
+  PetscInt      last = -1;
+  const bool    p1 = coarse.element == Element::P1;
+  Space::Coords XH;
+  for (PetscInt i = 0; i <= D; ++i) DofLambda(coarse.element, D, i, mu[i]);
   for (PetscInt c = 0; c < numFine; ++c) {
     const PetscInt pc = parent[c];
     const auto    &Xh = X(c);
+    // The vertex coordinates of the parent some cells ahead, whose vertices lie anywhere in vertX.
+    if (c + kAhead < numFine)
+      for (PetscInt k = 0; k <= D; ++k) __builtin_prefetch(&coarse.vertX[coarse.cellVert[parent[c + kAhead] * (D + 1) + k] * D]);
     // The children of a parent come one after the other: its vertices and geometry once for all of them.
-    if (pc != last) XH = coarse.X(pc), ComputeCellGeometry(dim, XH, g), last = pc;
-    for (PetscInt i = 0; i <= dim; ++i) {
-      SimplexPoint(dim, Xh, mu[i], x);
-      Barycentric(dim, g, XH, x, lambda);
+    if (pc != last) XH = coarse.X(pc), ComputeCellGeometry(D, XH, g), last = pc;
+    for (PetscInt i = 0; i <= D; ++i) {
+      // A P1 DOF's point is its vertex: SimplexPoint would give exactly its coordinates (1 x X_i + 0 x ...).
+      const PetscReal *xi = p1 ? &Xh[i * D] : x;
+      if (!p1) SimplexPoint(D, Xh, mu[i], x);
+      Barycentric(D, g, XH, xi, lambda);
       f(c, i, pc, lambda);
     }
   }
 }
+template <class Coords, class F>
+void ForEachFineDof(const Space &coarse, PetscInt numFine, const std::vector<PetscInt> &parent, Coords X, F f)
+{
+  if (coarse.dim == 2) ForEachFineDofD<2>(coarse, numFine, parent, X, f);
+  else ForEachFineDofD<3>(coarse, numFine, parent, X, f);
+}
 
-// Whether the point of barycentric coordinates lambda in coarse cell pc lies on active coarse contact
-// DOFs only (aU, aL: local arrays of uH and its lower bound; tol: ActiveTolerance).
+// Whether the point of barycentric coordinates lambda in coarse cell pc lies on coarse DOFs (at least
+// one) that are all active contact DOFs (aU, aL: local arrays of uH and its lower bound; tol:
+// ActiveTolerance). A CR point inside the cell lies on none (a fine contact DOF always lies on one).
 bool OnActiveContact(const Space &coarse, PetscInt pc, const PetscReal *lambda, const PetscScalar *aU, const PetscScalar *aL, PetscReal tol)
 {
   const PetscReal eps    = 1e-10;
-  bool            active = true;
+  bool            active = true, onAny = false;
   for (PetscInt j = 0; j < coarse.Nb(); ++j) {
     // P1: vertex j supports the point if lambda_j > 0; CR: face j contains it if lambda_j = 0.
     const bool     on = coarse.element == Element::P1 ? lambda[j] > eps : std::fabs(lambda[j]) < eps;
     const PetscInt J  = coarse.Dofs(pc)[j];
     if (on) active = active && coarse.kindLocal[J] == kContact && PetscRealPart(aU[J] - aL[J]) <= tol;
+    onAny = onAny || on;
   }
-  return active;
+  return active && onAny;
 }
 
 // The coarse vectors as local arrays, for the evaluation at fine DOF points.
@@ -126,8 +143,8 @@ PetscErrorCode SetFlaggedActive(const Space &fine, Vec flag, Vec lowerh, Vec uh)
 // Local work vectors of the fine space, zeroed, with their arrays.
 struct LocalSums {
   const Space &space;
-  Vec          vec[2] = {nullptr, nullptr};
-  PetscScalar *a[2]   = {nullptr, nullptr};
+  Vec          vec[3] = {nullptr, nullptr, nullptr};
+  PetscScalar *a[3]   = {nullptr, nullptr, nullptr};
   explicit LocalSums(const Space &s) : space(s) {}
   PetscErrorCode Get(int n)
   {
@@ -142,14 +159,14 @@ struct LocalSums {
   PetscErrorCode RestoreArrays()
   {
     PetscFunctionBeginUser;
-    for (int k = 0; k < 2; ++k)
+    for (int k = 0; k < 3; ++k)
       if (vec[k]) PetscCall(VecRestoreArray(vec[k], &a[k]));
     PetscFunctionReturn(0);
   }
   PetscErrorCode Restore()
   {
     PetscFunctionBeginUser;
-    for (int k = 0; k < 2; ++k)
+    for (int k = 0; k < 3; ++k)
       if (vec[k]) PetscCall(DMRestoreLocalVector(space.dm, &vec[k]));
     PetscFunctionReturn(0);
   }
@@ -195,41 +212,40 @@ PetscErrorCode TransferActiveSet(const Space &coarse, Vec uH, Vec lowerH, const 
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode MeshCells::Init(DM mesh)
+{
+  PetscFunctionBeginUser;
+  PetscCall(reader_.Init(mesh));
+  PetscCall(VertexCoordinates(mesh, x_));
+  dim_ = reader_.Dim();
+  PetscCall(DMPlexGetHeightStratum(mesh, 0, &cStart_, &cEnd_));
+  PetscCall(DMPlexGetDepthStratum(mesh, 0, &vStart_, NULL));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode EvaluateOnCells(const Space &coarse, Vec uH, Vec lowerH, DM fine, const std::vector<PetscInt> &parent, CellValues &cv)
 {
-  CoarseArrays       H(coarse);
-  PetscInt           cStart, cEnd, vStart;
-  Vec                coords;
-  DM                 cdm;
-  PetscSection       csec;
-  const PetscScalar *xa;
+  CoarseArrays H(coarse);
+  MeshCells    cells;
   PetscFunctionBeginUser;
-  const PetscInt dim = coarse.dim, nb = dim + 1;
-  PetscCall(DMPlexGetHeightStratum(fine, 0, &cStart, &cEnd));
-  PetscCall(DMPlexGetDepthStratum(fine, 0, &vStart, NULL));
-  PetscCheck((PetscInt)parent.size() == cEnd - cStart, PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "parent map has %d entries for %d fine cells", (int)parent.size(), (int)(cEnd - cStart));
-  // The fine cells' vertex coordinates, in the order of the cell tables a space on this mesh will have.
-  std::vector<PetscReal> X(nb * dim * (cEnd - cStart)); // nb * dim per cell, not a 12-entry Coords
-  PetscCall(DMGetCoordinatesLocal(fine, &coords));
-  PetscCall(DMGetCoordinateDM(fine, &cdm));
-  PetscCall(DMGetLocalSection(cdm, &csec));
-  PetscCall(VecGetArrayRead(coords, &xa));
-  for (PetscInt c = cStart; c < cEnd; ++c) {
-    PetscInt verts[4];
-    PetscCall(CellVertices(fine, c, dim, verts));
-    for (PetscInt k = 0; k < nb; ++k) {
-      PetscInt off;
-      PetscCall(PetscSectionGetOffset(csec, verts[k], &off));
-      for (PetscInt d = 0; d < dim; ++d) X[(c - cStart) * nb * dim + k * dim + d] = PetscRealPart(xa[off + d]);
-    }
-  }
-  PetscCall(VecRestoreArrayRead(coords, &xa));
+  const PetscInt nb = coarse.dim + 1;
+  PetscCall(cells.Init(fine));
+  PetscCheck((PetscInt)parent.size() == cells.NumCells(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "parent map has %d entries for %d fine cells", (int)parent.size(), (int)cells.NumCells());
   PetscCall(H.Get(uH, lowerH));
   cv.nb = nb;
-  cv.data.assign((cEnd - cStart) * 2 * nb, 0);
-  ForEachFineDof(coarse, cEnd - cStart, parent, [&](PetscInt c) { return &X[c * nb * dim]; }, [&](PetscInt c, PetscInt i, PetscInt pc, const PetscReal *lambda) {
+  cv.data.assign(cells.NumCells() * 2 * nb, 0);
+  PetscInt checked = -1;    // the last parent looked at for contact DOFs,
+  bool     contact = false; // whether it has any (most have none: their children's flags stay 0)
+  ForEachFineDof(coarse, cells.NumCells(), parent, [&](PetscInt c) { return cells.X(c); }, [&](PetscInt c, PetscInt i, PetscInt pc, const PetscReal *lambda) {
+    if (i == 0 && c + kAhead < cells.NumCells()) // the parent's values some cells ahead (its DOFs lie anywhere in uH)
+      for (PetscInt j = 0; j < nb; ++j) __builtin_prefetch(&H.u[coarse.Dofs(parent[c + kAhead])[j]]);
     cv.data[c * 2 * nb + i] = coarse.Value(pc, H.u, lambda);
-    if (lowerH) cv.data[c * 2 * nb + nb + i] = OnActiveContact(coarse, pc, lambda, H.u, H.lower, H.tol);
+    if (!lowerH) return;
+    if (pc != checked) {
+      checked = pc, contact = false;
+      for (PetscInt j = 0; j < nb; ++j) contact = contact || coarse.kindLocal[coarse.Dofs(pc)[j]] == kContact;
+    }
+    if (contact) cv.data[c * 2 * nb + nb + i] = OnActiveContact(coarse, pc, lambda, H.u, H.lower, H.tol);
   });
   PetscCall(H.Restore());
   PetscFunctionReturn(0);
@@ -282,30 +298,21 @@ PetscErrorCode MigrateCellValues(DM from, PetscSF migration, DM to, CellValues &
 
 PetscErrorCode ApplyCellValues(const Space &fine, const CellValues &cv, Vec lowerh, Vec uh)
 {
-  LocalSums s(fine); // sum, count; then flags
+  LocalSums s(fine); // sum, count and, with lowerh, flags: one pass over the cells
   PetscFunctionBeginUser;
   const PetscInt nb = fine.Nb();
   PetscCheck(cv.nb == nb && (PetscInt)cv.data.size() == 2 * nb * fine.NumCells(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "%d cell values for %d cells", (int)cv.data.size(), (int)fine.NumCells());
-  PetscCall(s.Get(2));
+  PetscCall(s.Get(lowerh ? 3 : 2));
   for (PetscInt c = 0; c < fine.NumCells(); ++c)
     for (PetscInt i = 0; i < nb; ++i) {
       const PetscInt dof = fine.Dofs(c)[i];
       s.a[0][dof] += cv.data[c * 2 * nb + i];
       s.a[1][dof] += 1;
+      if (lowerh && fine.kindLocal[dof] == kContact && cv.data[c * 2 * nb + nb + i] > 0) s.a[2][dof] = 1;
     }
   PetscCall(s.RestoreArrays());
   PetscCall(AverageToGlobal(fine, s.vec[0], s.vec[1], uh));
-  if (lowerh) {
-    PetscCall(VecSet(s.vec[0], 0));
-    PetscCall(VecGetArray(s.vec[0], &s.a[0]));
-    for (PetscInt c = 0; c < fine.NumCells(); ++c)
-      for (PetscInt i = 0; i < nb; ++i) {
-        const PetscInt dof = fine.Dofs(c)[i];
-        if (fine.kindLocal[dof] == kContact && cv.data[c * 2 * nb + nb + i] > 0) s.a[0][dof] = 1;
-      }
-    PetscCall(VecRestoreArray(s.vec[0], &s.a[0]));
-    PetscCall(SetFlaggedActive(fine, s.vec[0], lowerh, uh));
-  }
+  if (lowerh) PetscCall(SetFlaggedActive(fine, s.vec[2], lowerh, uh));
   PetscCall(s.Restore());
   PetscFunctionReturn(0);
 }

@@ -3,6 +3,7 @@
 #include "signorini/mesh.h"
 #include "unit_check.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <string>
@@ -139,6 +140,37 @@ static PetscErrorCode TestMesh(unit::Checker &ck, const MeshCase &mc)
   PetscErrorCode ierr = DMPlexCheck(dm);
   PetscCall(PetscPopErrorHandler());
   ck.Check(ierr == 0, tag + " DMPlexCheck", "returned %d", (int)ierr);
+
+  // CellVertexReader (and CellVertices, which uses it) against the definition, from transitive closures:
+  // the cell's vertices, vertex k the one not on face k of the cone. Through the cones' strides and
+  // through the cone section's offsets alike.
+  {
+    CellVertexReader strided, offsets;
+    PetscCall(strided.Init(dm));
+    PetscCall(offsets.Init(dm, false));
+    std::string msg;
+    for (PetscInt c = cStart; c < cEnd && msg.empty(); ++c) {
+      PetscInt        vs[4], vo[4], n, *closure = NULL;
+      const PetscInt *cone;
+      strided.Vertices(c, vs);
+      offsets.Vertices(c, vo);
+      std::vector<PetscInt> cellVerts;
+      PetscCall(DMPlexGetTransitiveClosure(dm, c, PETSC_TRUE, &n, &closure));
+      for (PetscInt i = 0; i < n; ++i)
+        if (closure[2 * i] >= vStart && closure[2 * i] < vEnd) cellVerts.push_back(closure[2 * i]);
+      PetscCall(DMPlexRestoreTransitiveClosure(dm, c, PETSC_TRUE, &n, &closure));
+      PetscCall(DMPlexGetCone(dm, c, &cone));
+      for (PetscInt k = 0; k <= dim && msg.empty(); ++k) {
+        bool onFace = false;
+        PetscCall(DMPlexGetTransitiveClosure(dm, cone[k], PETSC_TRUE, &n, &closure));
+        for (PetscInt i = 0; i < n; ++i) onFace = onFace || closure[2 * i] == vs[k];
+        PetscCall(DMPlexRestoreTransitiveClosure(dm, cone[k], PETSC_TRUE, &n, &closure));
+        const bool inCell = std::count(cellVerts.begin(), cellVerts.end(), vs[k]) == 1 && std::count(vs, vs + dim + 1, vs[k]) == 1;
+        if (onFace || !inCell || vs[k] != vo[k]) msg = "cell " + std::to_string(c) + " vertex " + std::to_string(k);
+      }
+    }
+    ck.Check(msg.empty(), tag + " CellVertexReader: vertex k of each cell is the one not on face k", "%s", msg.c_str());
+  }
 
   // 2D diagonal pattern: interior edges that are neither horizontal nor vertical.
   if (dim == 2) {

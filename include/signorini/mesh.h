@@ -66,6 +66,42 @@ PetscErrorCode SimplexVertices(DM dm, PetscInt p, PetscInt depth, PetscInt verts
 // The dim + 1 vertices of cell p ordered so that vertex k is the one not on face k of its cone (the order
 // of the cell tables of a discrete space).
 PetscErrorCode CellVertices(DM dm, PetscInt p, PetscInt dim, PetscInt verts[4]);
+// CellVertices for loops over every cell: reads the cones straight from the DMPlex's arrays. Ten cone
+// lookups per tetrahedron through DMPlexGetCone (each through the cone section's offsets, a second
+// scattered read), and the searches among them, were most of the time of the adaptive transfer's
+// evaluation on the fine cells. Valid while the mesh's topology does not change.
+class CellVertexReader {
+public:
+  // dm: an interpolated simplex DMPlex. strides: look for the strides of the cones (a pass over the
+  // points, worth it for a loop over many cells, see Kind).
+  PetscErrorCode Init(DM dm, bool strides = true);
+  PetscInt       Dim() const { return dim_; }
+  // As CellVertices(dm, p, dim, verts).
+  void Vertices(PetscInt p, PetscInt verts[4]) const { dim_ == 2 ? Vertices<2>(p, verts) : Vertices<3>(p, verts); }
+  // Starts loading what Vertices(p) will read, for a loop over the cells in order: the cones of p's
+  // faces (round 0) and, some cells later, once those are in cache, the cones of their edges (round 1,
+  // tetrahedra only). The faces and edges of consecutive cells are not close to each other in memory.
+  void Prefetch(PetscInt p, int round) const { dim_ == 2 ? Prefetch<2>(p, round) : Prefetch<3>(p, round); }
+
+private:
+  template <int D>
+  void Vertices(PetscInt p, PetscInt verts[4]) const;
+  template <int D>
+  void Prefetch(PetscInt p, int round) const;
+  // The points of one kind (cells, faces, edges) and where their cones lie: in a DMPlex built stratum by
+  // stratum the cones of a stratum follow each other with the same size (checked by Init), so the cone of
+  // p is found without reading the cone section's offsets; otherwise (stride 0) through them.
+  struct Kind {
+    PetscInt start = 0, base = 0, stride = 0;
+  };
+  const PetscInt *Cone(const Kind &k, PetscInt p) const { return cones_ + (k.stride ? k.base + (p - k.start) * k.stride : offsets_[p - pStart_]); }
+  PetscErrorCode  InitKind(PetscInt start, PetscInt end, PetscInt size, Kind &k) const;
+  PetscInt        dim_ = 0, pStart_ = 0;
+  const PetscInt *offsets_ = nullptr, *cones_ = nullptr;
+  Kind            cell_, face_, edge_;
+};
+// The coordinates of the local vertices of a DMPlex, dim per vertex (v - vStart).
+PetscErrorCode VertexCoordinates(DM dm, std::vector<PetscReal> &x);
 // The local faces (height-1 points) that carry `value` in `label` (which may be null: no faces). Refined
 // labels also hold vertices and edges; those are left out.
 PetscErrorCode LabelFaces(DM dm, DMLabel label, PetscInt value, std::vector<PetscInt> &faces);

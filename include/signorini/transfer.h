@@ -16,6 +16,7 @@
 // uh is not yet projected onto the constraints (Solve does that).
 #pragma once
 
+#include "signorini/mesh.h"
 #include "signorini/space.h"
 
 namespace signorini {
@@ -33,6 +34,35 @@ struct CellValues {
   // of the space's cell tables (CellVertices, which the migration keeps), then nb active flags (1: the
   // point lies on active coarse contact DOFs only).
   std::vector<PetscReal> data;
+};
+// The cells of a mesh that has no space on it yet: their vertices in the order of the cell tables a
+// space on it will have (CellVertices), and the vertex coordinates, read straight from the mesh.
+class MeshCells {
+public:
+  PetscErrorCode Init(DM mesh);
+  PetscInt       NumCells() const { return cEnd_ - cStart_; }
+  // The vertex coordinates of cell c (c - cStart) in the order of the cell tables. For a loop over the
+  // cells in order: it starts loading the cones of the cells ahead (CellVertexReader::Prefetch).
+  Space::Coords X(PetscInt c) const
+  {
+    PetscInt      v[4];
+    Space::Coords X;
+    if (c + 16 < NumCells()) reader_.Prefetch(cStart_ + c + 16, 0);
+    if (c + 8 < NumCells()) reader_.Prefetch(cStart_ + c + 8, 1);
+    reader_.Vertices(cStart_ + c, v);
+    // entry by entry: GCC turns a loop over d into a call of memcpy per vertex
+    for (PetscInt k = 0; k <= dim_; ++k) {
+      const PetscReal *xv = &x_[(v[k] - vStart_) * dim_];
+      X.x[k * dim_] = xv[0], X.x[k * dim_ + 1] = xv[1];
+      if (dim_ == 3) X.x[k * dim_ + 2] = xv[2];
+    }
+    return X;
+  }
+
+private:
+  CellVertexReader       reader_;
+  std::vector<PetscReal> x_; // dim per vertex (v - vStart)
+  PetscInt               dim_ = 0, cStart_ = 0, cEnd_ = 0, vStart_ = 0;
 };
 // On the fine mesh alone (no space on it yet). Without lowerH no DOF is flagged active.
 PetscErrorCode EvaluateOnCells(const Space &coarse, Vec uH, Vec lowerH, DM fine, const std::vector<PetscInt> &parent, CellValues &cv);
