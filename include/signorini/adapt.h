@@ -71,7 +71,7 @@ public:
   // they took. By default the pipeline's estimate (MeshSolution::estimate); a test may feed others.
   using Indicators = std::function<PetscErrorCode(const MeshSolution &, std::vector<PetscReal> &eta2, PetscReal &eta, double &seconds)>;
   // Takes a reference to `mesh`, the first mesh, and keeps a reference to the mesh of the step under
-  // way until it has refined it (the pipeline frees only its space's clone). errorDegree: the
+  // way until it has refined it (the pipeline drops only its space's reference). errorDegree: the
   // quadrature of the error against the exact solution, when the problem has one.
   AdaptiveRefinement(DM mesh, const Problem &problem, const PipelineOptions &o, const AdaptOptions &a, PetscInt errorDegree, Indicators indicators = nullptr);
   ~AdaptiveRefinement() override;
