@@ -263,7 +263,7 @@ def main():
     ap.add_argument("--no-warm-memory", action="store_true", help="do not touch the free memory once before the runs (see warm_memory)")
     ap.add_argument("--peer", choices=["dolfinx"], help="instead: whole process against dolfinx on the same scene and mesh (run/peer.py: --peer-elements, --peer-n2, --peer-n3)")
     ap.add_argument("--error", action="store_true", help="instead: the exact-error integration against the solve on the manufactured scenes")
-    ap.add_argument("--estimate", action="store_true", help="instead: the estimate's cost and the adaptive overhead per step, as ratios to the solve of the same run (run/bench_estimate.py: --est-n2, --est-n3, --adapt-n2, --adapt-n3, --adapt-steps)")
+    ap.add_argument("--estimate", action="store_true", help="instead: the estimate's cost and the adaptive overhead per step, as ratios to the solve of the same run (run/bench_estimate.py: --est-n2, --est-n3, --adapt-n2, --adapt-n3, --est-p1-n2, --est-p1-n3, --adapt-p1-n2, --adapt-p1-n3, --adapt-steps)")
     ap.add_argument("--nohier", action="store_true", help="instead: contact solve / linear solve on a fine Gmsh file read without -refine (run/bench_nohier.py: --nohier-n2)")
     args, extra = ap.parse_known_args()
     if args.repeat < 1:

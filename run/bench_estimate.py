@@ -2,15 +2,19 @@
 
   run/bench --estimate [--quick] [--dims 2,3] [--elements cr,p1] [--ranks P] [--repeat K] [--out DIR]
                        [--est-n2 1024] [--est-n3 48] [--adapt-n2 512] [--adapt-n3 48] [--adapt-steps 3]
+                       [--est-p1-n2 1024] [--est-p1-n3 100] [--adapt-p1-n2 1024] [--adapt-p1-n3 100]
 
 1. The estimate: for every element, `-options_file petsc-options/SCENE -box_faces N -space E -log_view`
-   (paper-5.1 at --est-n2 in 2D, paper-5.1-3d at --est-n3 in 3D) and the ratio of its Estimate stage to its
+   (paper-5.1 at --est-n2 in 2D, paper-5.1-3d at --est-n3 in 3D; P1 at --est-p1-n2 / --est-p1-n3, so that it
+   too has about 1 M DOFs) and the ratio of its Estimate stage to its
    Solve stage (the -log_view stages; the summary's "time" holds the same clocks). Target: <= 10 %.
-2. Adaptive refinement: the same scenes with -adapt_steps K (CR, from --adapt-n2 / --adapt-n3) and, for every
+2. Adaptive refinement: the same scenes with -adapt_steps K (for every element: CR from --adapt-n2 / --adapt-n3,
+   P1 from --adapt-p1-n2 / --adapt-p1-n3, about the same DOFs:
+   P1 has a third of CR's DOFs per cell in 2D, a twelfth in 3D) and, for every
    step that goes on to a next mesh, the overhead (estimate + mark + refine + redistribute + transfer, the
    summary's "adapt" rows) over that step's solve. Target: <= 50 % at 1 M DOFs and more (smaller steps are
    shown, marked "below 1 M DOFs").
---quick: small sizes (2D 128 and 64, 3D 12), a few seconds each. With --repeat K every case runs K times and
+--quick: small sizes (2D 128 and 64, 3D 12; P1 2D 128, 3D 24), a few seconds each. With --repeat K every case runs K times and
 each ratio is the median of the K runs' ratios (each from one run). Each run's summary JSON and -log_view are
 kept in DIR; the rows go to DIR/estimate-cost.csv and DIR/adapt-overhead.csv. Other options go to signorini."""
 import argparse
@@ -50,18 +54,18 @@ def step_overhead(a):
     return sum(a[k + "_seconds"] for k in OVERHEAD)
 
 
-def adapt_case(dim, N, steps, ranks, repeat, out, extra):
+def adapt_case(dim, element, N, steps, ranks, repeat, out, extra):
     """One row per step that goes on to a next mesh (the last step has no overhead to speak of)."""
     runs = []
     for k in range(repeat):
-        s = run(dim, "cr", N, ranks, out, "adapt-%dd-cr-N%d-np%d-run%d" % (dim, N, ranks, k + 1), ["-adapt_steps", str(steps)] + list(extra))
+        s = run(dim, element, N, ranks, out, "adapt-%dd-%s-N%d-np%d-run%d" % (dim, element, N, ranks, k + 1), ["-adapt_steps", str(steps)] + list(extra))
         if s is None or "adapt" not in s:
-            return [{"dim": dim, "element": "cr", "N": N, "step": 0, "status": "failed"}]
+            return [{"dim": dim, "element": element, "N": N, "step": 0, "status": "failed"}]
         runs.append(s)
     rows = []
     for step in range(min(len(s["adapt"]) for s in runs) - 1):
         med = lambda f: statistics.median(f(s["adapt"][step]) for s in runs)
-        row = {"dim": dim, "element": "cr", "N": N, "step": step, "dofs": runs[0]["adapt"][step]["dofs"], "solve_s": med(lambda a: a["solve_seconds"])}
+        row = {"dim": dim, "element": element, "N": N, "step": step, "dofs": runs[0]["adapt"][step]["dofs"], "solve_s": med(lambda a: a["solve_seconds"])}
         for k in OVERHEAD:
             row[k + "_s"] = med(lambda a: a[k + "_seconds"])
         row.update({"overhead_s": med(step_overhead), "ratio": med(lambda a: step_overhead(a) / a["solve_seconds"]), "repeats": repeat, "status": "ok"})
@@ -92,16 +96,22 @@ def main(bench_args, extra):
     ap.add_argument("--est-n3", type=int, default=None, help="3D cells per side of the estimate runs (default 48, --quick 12)")
     ap.add_argument("--adapt-n2", type=int, default=None, help="2D cells per side of the first adaptive mesh (default 512, --quick 64)")
     ap.add_argument("--adapt-n3", type=int, default=None, help="3D cells per side of the first adaptive mesh (default 48, --quick 12)")
+    ap.add_argument("--est-p1-n2", type=int, default=None, help="2D cells per side of P1's estimate run (default 1024, --quick 128)")
+    ap.add_argument("--est-p1-n3", type=int, default=None, help="3D cells per side of P1's estimate run (default 100, --quick 24)")
+    ap.add_argument("--adapt-p1-n2", type=int, default=None, help="2D cells per side of P1's first adaptive mesh (default 1024, --quick 128)")
+    ap.add_argument("--adapt-p1-n3", type=int, default=None, help="3D cells per side of P1's first adaptive mesh (default 100, --quick 24)")
     ap.add_argument("--adapt-steps", type=int, default=None, help="adaptive refinements (default 3 in 2D, 2 in 3D; --quick 1)")
     args, extra = ap.parse_known_args(extra)
     quick = bench_args.quick
-    n = {2: args.est_n2 or (128 if quick else 1024), 3: args.est_n3 or (12 if quick else 48)}
-    na = {2: args.adapt_n2 or (64 if quick else 512), 3: args.adapt_n3 or (12 if quick else 48)}
+    n = {("cr", 2): args.est_n2 or (128 if quick else 1024), ("cr", 3): args.est_n3 or (12 if quick else 48),
+         ("p1", 2): args.est_p1_n2 or (128 if quick else 1024), ("p1", 3): args.est_p1_n3 or (24 if quick else 100)}
+    na = {("cr", 2): args.adapt_n2 or (64 if quick else 512), ("cr", 3): args.adapt_n3 or (12 if quick else 48),
+          ("p1", 2): args.adapt_p1_n2 or (128 if quick else 1024), ("p1", 3): args.adapt_p1_n3 or (24 if quick else 100)}
     steps = {d: args.adapt_steps or (1 if quick else (3 if d == 2 else 2)) for d in (2, 3)}
     dims, elements = [int(d) for d in bench_args.dims.split(",")], bench_args.elements.split(",")
     os.makedirs(bench_args.out, exist_ok=True)
-    est = [estimate_case(d, e, n[d], bench_args.ranks, bench_args.repeat, bench_args.out, extra) for d in dims for e in elements]
-    ada = [r for d in dims for r in adapt_case(d, na[d], steps[d], bench_args.ranks, bench_args.repeat, bench_args.out, extra)]
+    est = [estimate_case(d, e, n[(e, d)], bench_args.ranks, bench_args.repeat, bench_args.out, extra) for d in dims for e in elements]
+    ada = [r for d in dims for e in elements for r in adapt_case(d, e, na[(e, d)], steps[d], bench_args.ranks, bench_args.repeat, bench_args.out, extra)]
     note = "; medians of %d runs" % bench_args.repeat if bench_args.repeat > 1 else ""
     print("\nestimate cost: Estimate stage / Solve stage of one run (-log_view; %d rank%s%s), target <= %.0f %% at >= 1 M DOFs" % (bench_args.ranks, "s" if bench_args.ranks > 1 else "", note, 100 * ESTIMATE_TARGET))
     print("%-3s %-4s %5s %10s %9s %9s  %s" % ("dim", "elem", "N", "DOFs", "solve", "estimate", "estimate / solve"))
