@@ -574,7 +574,11 @@ PetscErrorCode Solve(const Space &space, const Problem &problem, const System &s
   std::vector<std::string> amgDefaults;
   PetscFunctionBeginUser;
   PetscCall(AmgDefaultsInsert(space.dim, amgDefaults));
-  ReleaseFreedMemory();
+  // Only where this solve is compared with a linear one timed after it (-compare_linear), both start with
+  // no freed memory to re-use (ReleaseFreedMemory). Otherwise the memory earlier stages freed is for this
+  // solve to re-use: returning it to the system would make the solve and every stage after it (estimate,
+  // refinement, transfer of an adaptive step) fault it in again.
+  if (opts.compareLinear) ReleaseFreedMemory();
   PetscCall(StagePush(Stage::Solve));
   PetscCall(PetscTime(&t0));
   r.vi = problem.HasContact();
