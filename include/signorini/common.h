@@ -44,9 +44,10 @@ PetscMPIInt OwnerOf(const std::vector<PetscInt> &ranges, PetscInt g);
 PetscErrorCode SecondsSince(MPI_Comm comm, PetscLogDouble t0, double *seconds);
 
 // Gives the memory that earlier stages freed, but the C library kept for re-use, back to the system
-// (glibc's malloc_trim; nothing elsewhere). Called before each timed solve so that solves compared in
-// one run start alike: the first to touch new memory pays the kernel for zeroing it (about 2.8 s per GB
-// on the 2-core development VM), and a solve run after another would otherwise get that memory for free.
+// (glibc's malloc_trim; nothing elsewhere). Called before two solves compared in one run (the contact
+// solve and the linear one of -compare_linear) so that they start alike: the first to touch new memory
+// pays the kernel for zeroing it (about 2.8 s per GB on the 2-core development VM), and a solve run after
+// another would otherwise get that memory for free. Elsewhere freed memory is left to be re-used.
 void ReleaseFreedMemory();
 
 // printf-style formatting into a std::string.
