@@ -11,6 +11,8 @@ vertex-average companion; P1: flux equilibrated on vertex patches, v = u_h):
   on 2 ranks). Their u_D (2D top,
   3D top) and g are not affine on the boundary faces, so the theory guarantees the bound only up to that
   data approximation: the test checks it holds all the same;
+- eta >= the true energy error (no bound on the index) where Neumann data vary along the long sides of
+  cells of aspect ratio 10 to 1000;
 - the same estimate on 1 and 2 ranks (1e-10 relative; independent computations);
 - -estimate none: nothing printed, no "estimate" in the JSON summary, no time in the Estimate stage;
 - the cell indicators in -output (cell field "eta", one value per cell) satisfy sum_T eta_T^2 =
