@@ -183,80 +183,30 @@ PetscErrorCode SpaceSectionDM(const Space &s, DM *dm)
   PetscFunctionReturn(0);
 }
 
-// The vertices of every face (dim per face, in no particular order), from [fStart, fEnd) in order: the cell
-// tables look up each face twice, once from each of its cells, and a face's vertices then cost a table
-// read where CellVertices walks the cones down to the vertices again (ten cone look-ups per tetrahedron).
-static PetscErrorCode FaceVertices(DM dm, PetscInt dim, PetscInt fStart, PetscInt fEnd, std::vector<PetscInt> &fv)
-{
-  PetscFunctionBeginUser;
-  fv.resize((size_t)(fEnd - fStart) * dim);
-  for (PetscInt f = fStart; f < fEnd; ++f) {
-    const PetscInt *cone;
-    PetscInt       *v = &fv[(size_t)(f - fStart) * dim];
-    PetscCall(DMPlexGetCone(dm, f, &cone));
-    if (dim == 2) {
-      v[0] = cone[0], v[1] = cone[1];
-      continue;
-    }
-    const PetscInt *e0, *e1;
-    PetscCall(DMPlexGetCone(dm, cone[0], &e0));
-    PetscCall(DMPlexGetCone(dm, cone[1], &e1));
-    v[0] = e0[0], v[1] = e0[1], v[2] = e1[0] == e0[0] || e1[0] == e0[1] ? e1[1] : e1[0];
-  }
-  PetscFunctionReturn(0);
-}
-
 // Cell tables: vertices, DOFs and Cell Sets values of each cell, and the vertex coordinates.
-static PetscErrorCode BuildCellTables(Space &s, PetscInt vEnd, PetscInt fStart, PetscInt fEnd)
+static PetscErrorCode BuildCellTables(Space &s, PetscInt fStart)
 {
-  Vec                coords;
-  DM                 cdm;
-  PetscSection       csec;
-  const PetscScalar *xa;
-  DMLabel            cellSets;
-  std::string        problem;
+  DMLabel          cellSets;
+  std::string      problem;
+  CellVertexReader reader;
   PetscFunctionBeginUser;
   const PetscInt nb = s.dim + 1, nc = s.NumCells(), dim = s.dim;
-  PetscCall(DMGetCoordinatesLocal(s.mesh, &coords));
-  PetscCall(DMGetCoordinateDM(s.mesh, &cdm));
-  PetscCall(DMGetLocalSection(cdm, &csec));
   PetscCall(DMGetLabel(s.mesh, "Cell Sets", &cellSets));
-  PetscCall(VecGetArrayRead(coords, &xa));
-  s.vertX.resize((vEnd - s.vStart) * dim);
-  for (PetscInt v = s.vStart; v < vEnd; ++v) {
-    PetscInt off;
-    PetscCall(PetscSectionGetOffset(csec, v, &off));
-    for (PetscInt d = 0; d < dim; ++d) s.vertX[(v - s.vStart) * dim + d] = PetscRealPart(xa[off + d]);
-  }
-  PetscCall(VecRestoreArrayRead(coords, &xa));
-  std::vector<PetscInt> fv;
-  PetscCall(FaceVertices(s.mesh, dim, fStart, fEnd, fv));
+  PetscCall(VertexCoordinates(s.mesh, s.vertX));
+  PetscCall(reader.Init(s.mesh));
   if (s.element == Element::CR) s.cellDof.resize(nc * nb);
   s.cellVert.resize(nc * nb);
   for (PetscInt c = 0; c < nc; ++c) {
-    const PetscInt  cell = s.cStart + c;
-    const PetscInt *cone;
-    PetscCall(DMPlexGetCone(s.mesh, cell, &cone));
-    // Vertex k is the one not on face k: vertex 0 the one of face 1 not on face 0, vertex k >= 1 the one
-    // of face 0 not on face k (face k holds vertex 0 and all of face 0's but one).
-    const PetscInt *F0 = &fv[(size_t)(cone[0] - fStart) * dim], *F1 = &fv[(size_t)(cone[1] - fStart) * dim];
-    const auto      on = [dim](const PetscInt *F, PetscInt v) {
-      bool in = false;
-      for (PetscInt i = 0; i < dim; ++i) in = in || F[i] == v;
-      return in;
-    };
-    PetscInt *verts = &s.cellVert[c * nb];
-    for (PetscInt i = 0; i < dim; ++i)
-      if (!on(F0, F1[i])) verts[0] = F1[i];
-    for (PetscInt k = 1; k <= dim; ++k) {
-      const PetscInt *Fk = &fv[(size_t)(cone[k] - fStart) * dim];
-      for (PetscInt i = 0; i < dim; ++i)
-        if (!on(Fk, F0[i])) verts[k] = F0[i];
+    const PetscInt cell = s.cStart + c;
+    PetscInt      *verts = &s.cellVert[c * nb];
+    reader.PrefetchAhead(cell, s.cEnd);
+    reader.Vertices(cell, verts);
+    if (s.element == Element::CR) {
+      const PetscInt *cone;
+      PetscCall(DMPlexGetCone(s.mesh, cell, &cone));
+      for (PetscInt i = 0; i < nb; ++i) s.cellDof[c * nb + i] = cone[i] - fStart; // DOF = p - start, see CreateLayout
     }
-    for (PetscInt i = 0; i < nb; ++i) {
-      if (s.element == Element::CR) s.cellDof[c * nb + i] = cone[i] - fStart; // DOF = p - start, see CreateLayout
-      verts[i] -= s.vStart;
-    }
+    for (PetscInt i = 0; i < nb; ++i) verts[i] -= s.vStart;
     const Space::Coords X = s.X(c);
     if (!SimplexIsValid(dim, X) && problem.empty()) problem = Format("mesh: cell %d (near (%g, %g)) is degenerate", (int)cell, (double)X[0], (double)X[1]);
   }
@@ -581,7 +531,7 @@ PetscErrorCode SpaceCreate(DM mesh, Element element, const Problem &problem, Spa
   PetscCall(SpaceCreateLayout(mesh, element, s, vEnd, fStart, fEnd));
   PetscCall(PetscLogEventEnd(ev[0], 0, 0, 0, 0));
   PetscCall(PetscLogEventBegin(ev[1], 0, 0, 0, 0));
-  PetscCall(BuildCellTables(s, vEnd, fStart, fEnd));
+  PetscCall(BuildCellTables(s, fStart));
   PetscCall(PetscLogEventEnd(ev[1], 0, 0, 0, 0));
   PetscCall(PetscLogEventBegin(ev[2], 0, 0, 0, 0));
   PetscCall(CollectBoundary(s, problem));

@@ -82,6 +82,12 @@ public:
   // faces (round 0) and, some cells later, once those are in cache, the cones of their edges (round 1,
   // tetrahedra only). The faces and edges of consecutive cells are not close to each other in memory.
   void Prefetch(PetscInt p, int round) const { dim_ == 2 ? Prefetch<2>(p, round) : Prefetch<3>(p, round); }
+  // Both rounds at their distances ahead of cell p, for a loop over the cells [.., end) in order.
+  void PrefetchAhead(PetscInt p, PetscInt end) const
+  {
+    if (p + 16 < end) Prefetch(p + 16, 0);
+    if (p + 8 < end) Prefetch(p + 8, 1);
+  }
 
 private:
   template <int D>

@@ -47,8 +47,7 @@ public:
   {
     PetscInt      v[4];
     Space::Coords X;
-    if (c + 16 < NumCells()) reader_.Prefetch(cStart_ + c + 16, 0);
-    if (c + 8 < NumCells()) reader_.Prefetch(cStart_ + c + 8, 1);
+    reader_.PrefetchAhead(cStart_ + c, cEnd_);
     reader_.Vertices(cStart_ + c, v);
     // entry by entry: GCC turns a loop over d into a call of memcpy per vertex
     for (PetscInt k = 0; k <= dim_; ++k) {
