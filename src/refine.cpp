@@ -186,11 +186,13 @@ PetscErrorCode SplitTetrahedra(DM coarse, DM fine, const FineNumbering &n, const
   static const PetscInt refFace[4][3] = {{0, 1, 2}, {0, 3, 1}, {0, 2, 3}, {2, 1, 3}};
   std::vector<Known<2>> edges;
   std::vector<Known<3>> faces;
+  CellVertexReader      reader;
   PetscFunctionBeginUser;
+  PetscCall(reader.Init(coarse));
   for (PetscInt c = n.cS; c < n.cS + n.nC; ++c) {
     const PetscInt *cellCone;
     PetscInt        verts[4];
-    PetscCall(CellVertices(coarse, c, 3, verts));
+    reader.Vertices(c, verts);
     const PetscInt w[4] = {n.Vertex(verts[3]), n.Vertex(verts[2]), n.Vertex(verts[1]), n.Vertex(verts[0])}; // PETSc's order
     PetscCall(DMPlexGetCone(coarse, c, &cellCone));
     // The fine edges and faces on the cell's boundary, with their stored vertex order.
