@@ -11,6 +11,9 @@ namespace {
 // Per local vertex: the sum of kappa_T |T| u_h|_T(a) over the cells T at the vertex a, the sum of their
 // weights kappa_T |T|, and how many Dirichlet and contact faces touch it.
 constexpr int kVertexData = 4;
+// The companion solve's relative tolerance (preconditioned residual): the closest N can be 1/200 of the
+// average's, and the solve must get within a small fraction of it.
+constexpr PetscReal kCompanionRtol = 1e-6;
 
 // Sums the `width` values of every vertex over the ranks that hold a copy: onto the owner, then back.
 PetscErrorCode SumOverRanks(const Space &space, PetscInt width, std::vector<PetscReal> &data)
@@ -69,73 +72,86 @@ PetscErrorCode FluxesAndVertexSums(const Space &space, const Problem &problem, c
   PetscFunctionReturn(0);
 }
 
-// The cells' gradients of the barycentric coordinates scaled by (kappa_T |T|)^{1/2}, (d+1) d values a
-// cell, so that the stiffness products below make no geometry (only kept while the iterations run).
-std::vector<PetscReal> ScaledGradients(const Space &space, const System &sys)
+// Global numbers of the vertices whose companion value may move (movable, over all ranks; -1 for the others),
+// and how many this rank owns: the rows of the companion's linear system.
+PetscErrorCode MovableNumbers(const Space &space, const Reconstruction &r, std::vector<PetscInt> &num, PetscInt &owned)
 {
-  const PetscInt         dim = space.dim, nb = space.Nb();
-  std::vector<PetscReal> sg(space.NumCells() * nb * dim);
-  for (PetscInt c = 0; c < space.NumCells(); ++c) {
-    const Space::Coords X = space.X(c);
-    CellGeometry        g;
-    ComputeCellGeometry(dim, X, g);
-    const PetscReal s = std::sqrt(sys.Kappa(c) * g.volume);
-    for (PetscInt k = 0; k < nb; ++k)
-      for (PetscInt d = 0; d < dim; ++d) sg[(c * nb + k) * dim + d] = s * g.gradLambda[k][d];
-  }
-  return sg;
+  MPI_Comm       comm = PetscObjectComm((PetscObject)space.dm);
+  const PetscInt nv   = (PetscInt)r.companion.size();
+  PetscInt       first = 0;
+  PetscFunctionBeginUser;
+  owned = 0;
+  for (PetscInt v = 0; v < nv; ++v) owned += r.owned[v] && r.movable[v];
+  PetscCallMPI(MPI_Exscan(&owned, &first, 1, MPIU_INT, MPI_SUM, comm));
+  PetscMPIInt rank;
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  if (rank == 0) first = 0; // MPI_Exscan leaves rank 0's result undefined
+  num.assign(nv, -1);
+  for (PetscInt v = 0, i = first; v < nv; ++v)
+    if (r.owned[v] && r.movable[v]) num[v] = i++;
+  PetscCall(PetscSFBcastBegin(space.vertexSF, MPIU_INT, num.data(), num.data(), MPI_REPLACE));
+  PetscCall(PetscSFBcastEnd(space.vertexSF, MPIU_INT, num.data(), num.data(), MPI_REPLACE));
+  PetscFunctionReturn(0);
 }
 
-// y = A x: per vertex z, y_z = sum_T kappa_T |T| grad x_T . grad lambda_z over the cells at z (summed over
-// ranks; 0 where v is held, on Gamma_D), A the P1 stiffness.
-PetscErrorCode StiffnessProduct(const Space &space, const std::vector<PetscReal> &sg, const Reconstruction &r, const std::vector<PetscReal> &x, std::vector<PetscReal> &y)
+// The P1 stiffness sum_T kappa_T |T| grad lambda_i . grad lambda_j on the movable vertices (rows and columns
+// by `num`; entries of held vertices are left out, PETSc ignores negative indices), each cell's entries
+// given once by the rank that has the cell.
+PetscErrorCode CompanionMatrix(const Space &space, const System &sys, const std::vector<PetscInt> &num, PetscInt owned, Mat *A)
 {
-  const PetscInt dim = space.dim, nb = space.Nb(), nv = (PetscInt)x.size();
+  const PetscInt         dim = space.dim, nb = space.Nb(), nc = space.NumCells();
+  std::vector<PetscInt>  ci(nc * nb * nb), cj(nc * nb * nb);
+  std::vector<PetscReal> val(nc * nb * nb);
   PetscFunctionBeginUser;
-  y.assign(nv, 0.0);
-  for (PetscInt c = 0; c < space.NumCells(); ++c) {
-    const PetscInt  *vert = &space.cellVert[c * nb];
-    const PetscReal *G    = &sg[c * nb * dim];
-    PetscReal        w[3] = {0, 0, 0};
-    for (PetscInt k = 0; k < nb; ++k)
-      for (PetscInt d = 0; d < dim; ++d) w[d] += x[vert[k]] * G[k * dim + d];
-    for (PetscInt k = 0; k < nb; ++k) {
-      PetscReal dot = 0;
-      for (PetscInt d = 0; d < dim; ++d) dot += w[d] * G[k * dim + d];
-      y[vert[k]] += dot;
-    }
+  for (PetscInt c = 0, at = 0; c < nc; ++c) {
+    CellGeometry g;
+    ComputeCellGeometry(dim, space.X(c), g);
+    const PetscReal kv   = sys.Kappa(c) * g.volume;
+    const PetscInt *vert = &space.cellVert[c * nb];
+    for (PetscInt i = 0; i < nb; ++i)
+      for (PetscInt j = 0; j < nb; ++j, ++at) {
+        PetscReal dot = 0;
+        for (PetscInt d = 0; d < dim; ++d) dot += g.gradLambda[i][d] * g.gradLambda[j][d];
+        ci[at] = num[vert[i]], cj[at] = num[vert[j]], val[at] = kv * dot;
+      }
   }
-  PetscCall(SumOverRanks(space, 1, y));
-  for (PetscInt v = 0; v < nv; ++v)
-    if (!r.movable[v]) y[v] = 0;
+  PetscCall(MatCreate(PetscObjectComm((PetscObject)space.dm), A));
+  PetscCall(MatSetSizes(*A, owned, owned, PETSC_DETERMINE, PETSC_DETERMINE));
+  PetscCall(MatSetType(*A, MATAIJ));
+  PetscCall(MatSetPreallocationCOO(*A, (PetscCount)ci.size(), ci.data(), cj.data()));
+  PetscCall(MatSetValuesCOO(*A, val.data(), INSERT_VALUES));
+  PetscCall(MatSetOption(*A, MAT_SPD, PETSC_TRUE));
   PetscFunctionReturn(0);
 }
 } // namespace
 
-// Brings the companion v closer to u_h where the vertex average is far from the closest conforming one, as
-// on cells of aspect ratio 1000, where the average's values at the vertices across a thin cell differ by
-// the nonconformity along its long side and N is 25 to 80 times the error. N^2 = |||u_h - v|||^2 is a
-// quadratic in the free vertex values whose Hessian is the P1 stiffness A (twice): its minimiser solves
-// A v = b with b_z = (kappa grad_h u_h, grad lambda_z); CellTerms (estimate.cpp) has summed the residual
-// r = b - A v of the average and diag A in the loop it makes anyway, so deciding costs no cell loop. The
-// preconditioned (Jacobi) conjugate gradients lower N^2 by alpha r.z at each step, monotonically. Whether
-// to run them is decided from the first residual: the first step lowers N^2 by at least r.z / (d + 1)
-// (A <= (d + 1) diag A, cell by cell), and r.z / N^2 is below 0.02 on the meshes of shape-regular cells
-// here (the average is then within 1 % of the minimum of N, not worth the extra cell loops) and about 1 on
-// the stretched ones (then the estimate's cell terms are computed again with the new v). They stop when a
-// step lowers N^2 by less than 1 % (at most 100 steps). Every iterate keeps Gamma_D's values; on Gamma_C
-// the iterates may fall below psi (holding those vertices at psi left the index of stiff-stretched-3d at
+// Brings the companion v closer to u_h where the vertex average is far from the closest conforming one: on
+// cells of aspect ratio 1000, where the average's values at the vertices across a thin cell differ by the
+// nonconformity along its long side (N 25 to 80 times the error), and where cells of a large kappa touch at a
+// vertex only (a checkerboard of kappa 1 and 1e6: the average splits the difference of u_h's two values there,
+// and kappa 1e6 turns that into N 40 to 180 times the closest N). N^2 = |||u_h - v|||^2 is a quadratic in the
+// movable vertex values whose Hessian is the P1 stiffness A (twice); its minimiser is v + w with A w = r, r
+// = b - A v the residual of the average (b_z = (kappa grad_h u_h, grad lambda_z)), which CellTerms
+// (estimate.cpp) has summed with diag A in the loop it makes anyway. Whether to solve is decided from that:
+// one Jacobi step would lower N^2 by r.z / (d + 1) at least (z = r / diag A; A <= (d + 1) diag A cell by
+// cell), and r.z / N^2 is below 0.02 on the meshes of shape-regular cells and moderate kappa here (the
+// average then within 1 % of the minimum, not worth a solve) and 1 or more where it is far off. The system
+// is the Laplacian of the P1 space on the mesh, with kappa's contrast in it: conjugate gradients
+// preconditioned by BoomerAMG reach the minimum in a few steps, where Jacobi's took hundreds on the
+// checkerboard, and a stop on a small decrease left N at 40 times its minimum (options prefix
+// -estimate_companion_, e.g. -estimate_companion_ksp_monitor). Held vertices keep u_D; on Gamma_C v may
+// fall below psi during the solve (holding those vertices at psi left the index of stiff-stretched-3d at
 // 3.8, letting them move and raising them to psi at the end gives 2.0), so v is raised to psi there at the
-// end, which keeps it a valid companion. The bound holds for any such v: this only makes it sharper.
+// end, which keeps it a valid companion. The bound holds for any such v: the solve only makes it sharper,
+// and one that fails leaves the average.
 PetscErrorCode ImproveCompanion(const Space &space, const System &sys, std::vector<PetscReal> &vertexSums, PetscReal n2, Reconstruction &r, bool &improved)
 {
-  MPI_Comm               comm = PetscObjectComm((PetscObject)space.dm);
-  const PetscInt         nv   = (PetscInt)r.companion.size();
-  std::vector<PetscReal> res, diag, z, p, q;
+  MPI_Comm       comm = PetscObjectComm((PetscObject)space.dm);
+  const PetscInt nv   = (PetscInt)r.companion.size();
   PetscFunctionBeginUser;
   improved = false;
   PetscCall(SumOverRanks(space, 2, vertexSums));
-  { // the decision first, without the iteration's vectors (on most meshes it is no): r.z as the loop below computes it
+  { // the decision first: r.z over the owned movable vertices
     PetscReal local = 0, rz0;
     for (PetscInt v = 0; v < nv; ++v) {
       const PetscReal rv = r.movable[v] ? vertexSums[2 * v] : 0, dv = vertexSums[2 * v + 1];
@@ -144,40 +160,53 @@ PetscErrorCode ImproveCompanion(const Space &space, const System &sys, std::vect
     PetscCallMPI(MPI_Allreduce(&local, &rz0, 1, MPIU_REAL, MPI_SUM, comm));
     if (!(rz0 > 0.1 * n2)) PetscFunctionReturn(0);
   }
-  res.resize(nv), diag.resize(nv), z.resize(nv), p.resize(nv);
-  for (PetscInt v = 0; v < nv; ++v) res[v] = r.movable[v] ? vertexSums[2 * v] : 0, diag[v] = vertexSums[2 * v + 1];
-  const auto Dot = [&](const std::vector<PetscReal> &a, const std::vector<PetscReal> &b, PetscReal &sum) {
-    PetscReal local = 0;
-    for (PetscInt v = 0; v < nv; ++v)
-      if (r.owned[v]) local += a[v] * b[v];
-    return MPI_Allreduce(&local, &sum, 1, MPIU_REAL, MPI_SUM, comm);
-  };
-  const auto Precondition = [&]() {
-    for (PetscInt v = 0; v < nv; ++v) z[v] = diag[v] > 0 ? res[v] / diag[v] : 0;
-  };
-  Precondition();
-  PetscReal rz;
-  PetscCallMPI(Dot(res, z, rz));
-  p = z;
-  const std::vector<PetscReal> sg = ScaledGradients(space, sys);
-  PetscInt                     steps = 0;
-  while (steps < 100) {
-    PetscReal pq, rzNext;
-    PetscCall(StiffnessProduct(space, sg, r, p, q));
-    PetscCallMPI(Dot(p, q, pq));
-    if (!(pq > 0)) break;
-    const PetscReal alpha = rz / pq;
-    for (PetscInt v = 0; v < nv; ++v) r.companion[v] += alpha * p[v], res[v] -= alpha * q[v];
-    n2 -= alpha * rz;
-    if (++steps, alpha * rz < 0.01 * n2) break;
-    Precondition();
-    PetscCallMPI(Dot(res, z, rzNext));
-    for (PetscInt v = 0; v < nv; ++v) p[v] = z[v] + rzNext / rz * p[v];
-    rz = rzNext;
+  std::vector<PetscInt> num;
+  PetscInt              owned;
+  Mat                   A;
+  Vec                   rhs, w;
+  KSP                   ksp;
+  PC                    pc;
+  PetscCall(MovableNumbers(space, r, num, owned));
+  PetscCall(CompanionMatrix(space, sys, num, owned, &A));
+  PetscCall(MatCreateVecs(A, &w, &rhs));
+  {
+    PetscScalar *b;
+    PetscCall(VecGetArray(rhs, &b));
+    for (PetscInt v = 0, i = 0; v < nv; ++v)
+      if (r.owned[v] && r.movable[v]) b[i++] = vertexSums[2 * v];
+    PetscCall(VecRestoreArray(rhs, &b));
   }
-  for (PetscInt v = 0; v < nv; ++v) r.companion[v] = std::max(r.companion[v], r.lower[v]);
-  improved = true;
-  PetscCall(PetscInfo(space.dm, "CR estimate: %d conjugate-gradient steps towards the closest companion, N^2 %g\n", (int)steps, (double)n2));
+  PetscCall(KSPCreate(comm, &ksp));
+  PetscCall(KSPSetOptionsPrefix(ksp, "estimate_companion_"));
+  PetscCall(KSPSetOperators(ksp, A, A));
+  PetscCall(KSPSetType(ksp, KSPCG));
+  PetscCall(KSPGetPC(ksp, &pc));
+  PetscCall(PCSetType(pc, PCHYPRE));
+  PetscCall(PCHYPRESetType(pc, "boomeramg"));
+  PetscCall(KSPSetTolerances(ksp, kCompanionRtol, PETSC_DEFAULT, PETSC_DEFAULT, 200));
+  PetscCall(KSPSetFromOptions(ksp));
+  PetscCall(KSPSolve(ksp, rhs, w));
+  KSPConvergedReason reason;
+  PetscInt           its;
+  PetscCall(KSPGetConvergedReason(ksp, &reason));
+  PetscCall(KSPGetIterationNumber(ksp, &its));
+  if (reason > 0) {
+    std::vector<PetscReal> step(nv, 0.0);
+    const PetscScalar     *x;
+    PetscCall(VecGetArrayRead(w, &x));
+    for (PetscInt v = 0, i = 0; v < nv; ++v)
+      if (r.owned[v] && r.movable[v]) step[v] = PetscRealPart(x[i++]);
+    PetscCall(VecRestoreArrayRead(w, &x));
+    PetscCall(PetscSFBcastBegin(space.vertexSF, MPIU_REAL, step.data(), step.data(), MPI_REPLACE));
+    PetscCall(PetscSFBcastEnd(space.vertexSF, MPIU_REAL, step.data(), step.data(), MPI_REPLACE));
+    for (PetscInt v = 0; v < nv; ++v) r.companion[v] = std::max(r.companion[v] + step[v], r.lower[v]);
+    improved = true;
+  }
+  PetscCall(PetscInfo(space.dm, "CR estimate: companion solve %s in %d iterations (N^2 of the average %g)\n", KSPConvergedReasons[reason], (int)its, (double)n2));
+  PetscCall(KSPDestroy(&ksp));
+  PetscCall(VecDestroy(&w));
+  PetscCall(VecDestroy(&rhs));
+  PetscCall(MatDestroy(&A));
   PetscFunctionReturn(0);
 }
 
