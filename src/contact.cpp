@@ -370,7 +370,7 @@ static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &
   PetscCall(MatDestroy(&J));
   PetscCall(VecDestroy(&upper));
   PetscCall(VecDestroy(&F));
-  if (reason <= 0) SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)u), "solver: the contact solve (SNESVI) did not converge (%s after %" PetscInt_FMT " Newton iterations); see -snes_monitor -snes_vi_monitor -ksp_converged_reason", r.reason.c_str(), r.newtonIts);
+  if (reason <= 0) SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)u), "solver: the contact solve (SNESVI) did not converge (%s after %" PetscInt_FMT " Newton iterations); see -snes_monitor -snes_vi_monitor -ksp_converged_reason; for kappa jumps or stretched cells, -options_file petsc-options/solvers/high-contrast", r.reason.c_str(), r.newtonIts);
   PetscFunctionReturn(0);
 }
 
