@@ -95,6 +95,12 @@ static PetscErrorCode Run(MPI_Comm comm)
   // mesh -> space -> assembly -> solve -> errors -> report -> output
   const bool adaptive = s.adapt.steps > 0;
   if (adaptive && s.study.levels > 0) SIGNORINI_INPUT_ERROR(comm, "options -adapt_steps and -study_levels: a run refines adaptively or makes a convergence study, not both");
+  // The other -adapt_* options shape an adaptive run: given without one, they would be silently ignored.
+  for (const char *name : {"-adapt_theta", "-adapt_tol", "-adapt_max_dofs", "-adapt_imbalance", "-adapt_refinement", "-adapt_reference_steps"}) {
+    PetscBool given;
+    PetscCall(PetscOptionsHasName(NULL, NULL, name, &given));
+    if (given && !adaptive) SIGNORINI_INPUT_ERROR(comm, "option %s: applies to adaptive refinement only; give -adapt_steps K too", name);
+  }
   // Nested iteration needs the coarser levels of the refinement; a scene without contact is one linear solve.
   const bool nested = s.nested.enabled && s.mesh.refine > 0 && s.nested.levels != 0 && s.study.levels == 0 && !adaptive && !s.problem.contact.empty();
   MeshLevels levels;

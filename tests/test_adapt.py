@@ -7,6 +7,7 @@
   - on the singular scene stiff-below-h2 the estimate falls like DOFs^-1/2 (fitted slope over the last
     steps <= -0.45), where uniform refinement gives DOFs^-0.32;
   - -adapt_tol stops at the first step whose eta is below it; -output writes the last mesh;
+  - an option of the adaptive run (-adapt_tol, ...) without -adapt_steps is refused, not ignored;
   - bad input: one clear line each."""
 import math
 import os
@@ -105,6 +106,11 @@ for args, message in [(["-adapt_theta", "0"], "-adapt_theta"),
     rc, out, err, _ = run(base + args, check=False)
     lines = [l for l in (out + err).splitlines() if l.startswith("signorini: error:")]
     c.check(rc == 1 and len(lines) == 1 and message in lines[0], "%s: one error line (%s)" % (" ".join(args), lines[0] if lines else "none"))
+# An option of the adaptive run without -adapt_steps is refused, not ignored.
+rc, out, err, _ = run(scene("manufactured-2d") + ["-adapt_tol", "0.01"], check=False)
+lines = [l for l in (out + err).splitlines() if l.startswith("signorini: error:")]
+c.check(rc == 1 and len(lines) == 1 and "-adapt_tol" in lines[0] and "-adapt_steps" in lines[0] and "energy" not in out,
+        "-adapt_tol without -adapt_steps: one error line before the solve (%s)" % (lines[0] if lines else "none"))
 # sbr refines triangles only: refused on a tetrahedral mesh before anything is solved (no summary line).
 rc, out, err, _ = run(scene("manufactured-3d") + ["-adapt_steps", "1", "-adapt_refinement", "sbr"], check=False)
 lines = [l for l in (out + err).splitlines() if l.startswith("signorini: error:")]
