@@ -21,9 +21,10 @@
 // CR (Marini): the face fluxes of cell T are Phi_{T,F} = int_T kappa grad u_h . grad phi_F - int_T f phi_F
 // (the load by the assembly's rule), the cell's share of the residual of DOF F: they sum to -int_T f, are
 // opposite on the two sides of a free face, equal int_F g phi_F on Gamma_N and the (non-negative) residual
-// on Gamma_C. v: the vertex average of u_h, set to u_D on Gamma_D and raised to psi on Gamma_C, replaced by
-// the conforming function closest to u_h (a P1 solve) where the average is far from it (cells of large
-// aspect ratio, cells of large kappa that touch at a vertex only).
+// on Gamma_C. v: the vertex average of u_h, set to u_D on Gamma_D and raised to psi on Gamma_C, moved by
+// conjugate gradients towards the conforming function closest to u_h where the average is far from it
+// (cells of large aspect ratio), and solved for with BoomerAMG where the gradients show it was very far
+// (cells of large kappa that touch at a vertex only).
 // P1 (Braess-Schoeberl, Ern-Vohralik): sigma = sum over vertices a of sigma_a, sigma_a in RT0 on the patch
 // of a, with int_T div sigma_a = int_T (kappa grad u_h . grad psi_a - f psi_a) on each cell, zero normal
 // flux on the faces of the patch without a, closest to the cellwise RT0 interpolant of psi_a kappa grad u_h
@@ -105,7 +106,7 @@ PetscErrorCode ReconstructCR(const Space &space, const Problem &problem, const S
 // generic: every vertex patch by the general solve (sparse elimination of the cell graph Laplacian), not the
 // 2D one along the cells' cycle or path around the vertex; the two agree to round-off (unit_equilibrate).
 PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const System &sys, Vec u, Reconstruction &r, bool generic = false);
-// CR: replaces the companion by the conforming function closest to u_h where the vertex average is far
+// CR: moves the companion towards the conforming function closest to u_h where the vertex average is far
 // from it (see estimate_cr.cpp). vertexSums holds, per local vertex z, this rank's sums over its cells at z
 // of kappa_T |T| grad(u_h - v)_T . grad lambda_z and of kappa_T |T| |grad lambda_z|^2 (2 values a vertex;
 // summed over ranks here), and n2 = N^2 over all ranks; `improved` says whether v changed.
