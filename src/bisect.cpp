@@ -4,14 +4,27 @@
 // Why it is conforming and the same on any number of ranks:
 //  - Every rank orders edges the same way, by geometry only: longer first, ties broken by the midpoint's
 //    coordinates, then by the endpoints' (exact doubles, so the same on every rank).
-//  - A marked cell marks its longest edge; then every cell with a marked edge marks its longest edge, to
-//    a fixed point (Rivara's closure). The fixed point is the least one containing the first marks, so
-//    it does not depend on the order of the sweeps or on the distribution.
+//  - A marked cell marks its longest edge; then every cell with a marked edge marks more edges by a rule
+//    that marks more when it has more marks, to a fixed point. The fixed point is the least one containing
+//    the first marks, so it does not depend on the order of the sweeps or on the distribution.
+//  - The rule is Rivara's (a cell with a marked edge marks its longest edge: its first cut is its longest
+//    edge, for the shape of the children) except for thin triangles. Bisecting an edge makes a child with
+//    the angle between the edge and the median to its midpoint; in a stretched triangle the median to
+//    the longest edge (and to the long leg of a right triangle) lies almost along it, so a longest-edge
+//    cut makes an angle near 180 degrees, and P1 and Crouzeix-Raviart gradients lose accuracy with it
+//    (the maximum angle condition). An edge is safe in a 2D cell when that median makes at least 30
+//    degrees with it (UnsafeEdges). A triangle whose longest edge is unsafe is cut either once, by its
+//    one marked edge if that is safe (the short leg of a thin right triangle: two children with angles
+//    of about 90 degrees), or by all three edges (four children close to similar to it), so its
+//    children's angles stay within its own and about 90 degrees. Shape-regular triangles (right isosceles
+//    ones and their bisections included) have a safe longest edge and are refined exactly as by Rivara.
+//    3D keeps Rivara's rule for every tetrahedron.
 //  - Each cell bisects its marked edges one after the other in the global order, each bisection cutting
 //    every current child that has the whole edge (an edge not yet bisected is whole in some child).
 //    Restricted to a face, this is the face's own sequence of bisections of its marked edges in the same
 //    order (a cut by an edge off the face leaves the face's pieces whole), so the two cells of a face cut
-//    it alike. The closure makes every cell's first cut its longest edge, for the shape of the children.
+//    it alike. In 2D a face is an edge, so any set of marked edges gives a conforming mesh; in 3D, every
+//    tetrahedron with a marked edge cuts its longest first.
 // New vertices are the midpoints of the marked edges.
 //
 // The fine DMPlex is built directly, as refine.cpp builds the uniform one (PETSc's DMPlexInterpolate of
@@ -240,15 +253,43 @@ PetscErrorCode SyncMarks(const Coarse &m, const Sharing &sh, std::vector<char> &
   PetscFunctionReturn(0);
 }
 
-// Rivara's closure of the marks (see the top of the file), with shared edges agreed between ranks.
+// The edges of 2D cell c (bits k of kPair) whose bisection would make a flat child: the median from the
+// opposite vertex to the edge's midpoint makes an angle below 30 degrees with the edge (cos^2 above 3/4).
+// Bisecting an edge makes the angles of the median with it at the midpoint and keeps the parent's other
+// angles (split or whole), so a safe bisection makes no angle above max(parent's, 150 degrees). The sums
+// are symmetric in the edge's two vertices (their difference flips sign exactly, their sum is the same),
+// so every rank decides alike from the same coordinates. 3D: none (the closure there is Rivara's).
+int UnsafeEdges(const Coarse &m, PetscInt c)
+{
+  constexpr PetscReal kCos2Alpha0 = 0.75;
+  if (m.dim != 2) return 0;
+  const PetscInt *cv = &m.cellVerts[3 * c];
+  int             bits = 0;
+  for (PetscInt k = 0; k < 3; ++k) {
+    const PetscReal *a = &m.x[3 * cv[kPair[k][0]]], *b = &m.x[3 * cv[kPair[k][1]]], *p = &m.x[3 * cv[3 - kPair[k][0] - kPair[k][1]]];
+    PetscReal        uu = 0, ww = 0, uw = 0;
+    for (int d = 0; d < 3; ++d) {
+      const PetscReal u = b[d] - a[d], w = 0.5 * (a[d] + b[d]) - p[d];
+      uu += u * u, ww += w * w, uw += u * w;
+    }
+    if (uw * uw > kCos2Alpha0 * uu * ww) bits |= 1 << k;
+  }
+  return bits;
+}
+
+// The closure of the marks (see the top of the file), with shared edges agreed between ranks.
 PetscErrorCode CloseMarks(MPI_Comm comm, const Coarse &m, const Sharing &sh, const EdgeOrder &before, const std::vector<char> &marked, bool allEdges, std::vector<char> &mark)
 {
   const PetscInt nc = m.NumCells(), ne = m.NumEdges();
   std::vector<PetscInt> longest(nc), starStart(ne + 1, 0), star(m.nce * nc), work;
+  std::vector<char>     unsafe(nc), rivara(nc);
   PetscFunctionBeginUser;
   for (PetscInt c = 0; c < nc; ++c) {
     const PetscInt *edges = &m.cellEdges[m.nce * c];
-    longest[c]            = *std::min_element(edges, edges + m.nce, before);
+    const PetscInt  first = std::min_element(edges, edges + m.nce, before) - edges;
+    longest[c]            = edges[first];
+    unsafe[c]             = (char)UnsafeEdges(m, c);
+    rivara[c]             = !(unsafe[c] >> first & 1);
     for (PetscInt k = 0; k < m.nce; ++k) ++starStart[edges[k] + 1];
   }
   std::partial_sum(starStart.begin(), starStart.end(), starStart.begin());
@@ -261,6 +302,17 @@ PetscErrorCode CloseMarks(MPI_Comm comm, const Coarse &m, const Sharing &sh, con
   const auto markEdge = [&](PetscInt e) {
     if (!mark[e]) mark[e] = 1, work.push_back(e);
   };
+  // The rule of cell c with a marked edge: Rivara's, or a thin cell cut once by its one marked edge if
+  // that is safe, else by all its edges.
+  const auto close = [&](PetscInt c) {
+    if (rivara[c]) return markEdge(longest[c]);
+    const PetscInt *edges = &m.cellEdges[m.nce * c];
+    PetscInt        n = 0, bad = 0;
+    for (PetscInt k = 0; k < m.nce; ++k)
+      if (mark[edges[k]]) ++n, bad |= unsafe[c] >> k & 1;
+    if (bad || n > 1)
+      for (PetscInt k = 0; k < m.nce; ++k) markEdge(edges[k]);
+  };
   for (PetscInt c = 0; c < nc; ++c)
     if (marked[c]) {
       if (allEdges)
@@ -271,7 +323,7 @@ PetscErrorCode CloseMarks(MPI_Comm comm, const Coarse &m, const Sharing &sh, con
     while (!work.empty()) {
       const PetscInt e = work.back();
       work.pop_back();
-      for (PetscInt i = starStart[e]; i < starStart[e + 1]; ++i) markEdge(longest[star[i]]);
+      for (PetscInt i = starStart[e]; i < starStart[e + 1]; ++i) close(star[i]);
     }
     std::vector<PetscInt> learnt;
     PetscCall(SyncMarks(m, sh, mark, learnt));

@@ -14,7 +14,9 @@
 //   - the marked cells are refined, cells far from them are not;
 //   - the mesh is the one the same refinement makes of the whole mesh on one rank with its points numbered
 //     backwards (the same cells: sorted centroids and volumes), also after repeated steps;
-//   - repeated refinement towards a corner keeps the shape: the worst aspect ratio stops growing.
+//   - repeated refinement towards a corner keeps the shape: the worst aspect ratio stops growing;
+//   - on boxes of stretched cells (aspect ratio 100), no bisection makes an angle near 180 degrees: the
+//     largest angle stays within the bound derived at ThinCaseBound.
 // With -bisect_time_faces n, it instead times one refinement of 10 % of the cells of a box of n^3 cubes
 // cut into 6 n^3 tetrahedra (not a test: a measurement).
 #include "signorini/localrefine.h"
@@ -208,6 +210,27 @@ static PetscErrorCode WorstAspect(DM dm, double *worst)
   PetscFunctionReturn(0);
 }
 
+// Largest angle over the cells of a 2D mesh (global), in degrees.
+static PetscErrorCode MaxAngle(DM dm, double *largest)
+{
+  PetscInt cS, cE;
+  PetscFunctionBeginUser;
+  *largest = 0;
+  PetscCall(DMPlexGetHeightStratum(dm, 0, &cS, &cE));
+  for (PetscInt c = cS; c < cE; ++c) {
+    std::vector<std::array<double, 3>> v;
+    PetscCall(unit::PointVertices(dm, c, v));
+    for (int i = 0; i < 3; ++i) {
+      const auto &a = v[i], &b = v[(i + 1) % 3], &p = v[(i + 2) % 3];
+      double      dot = 0, ua = 0, ub = 0;
+      for (int d = 0; d < 3; ++d) dot += (a[d] - p[d]) * (b[d] - p[d]), ua += (a[d] - p[d]) * (a[d] - p[d]), ub += (b[d] - p[d]) * (b[d] - p[d]);
+      *largest = std::max(*largest, std::acos(std::clamp(dot / std::sqrt(ua * ub), -1.0, 1.0)) * 180 / M_PI);
+    }
+  }
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, largest, 1, MPI_DOUBLE, MPI_MAX, PetscObjectComm((PetscObject)dm)));
+  PetscFunctionReturn(0);
+}
+
 // Every child lies in its parent and the children fill it; returns the worst relative volume defect and
 // the largest barycentric coordinate outside [0, 1] of a child's centroid.
 static PetscErrorCode ParentFit(DM coarse, DM fine, const std::vector<PetscInt> &parent, double *volumeDefect, double *outside)
@@ -365,7 +388,24 @@ struct Case {
   double      radius; // cells with centroid within radius of the origin are marked
   double      far;    // cells with centroid beyond this distance from the origin must stay whole
   bool        allEdges = false; // marked cells cut all their edges, not only the longest
+  bool        thin     = false; // a 2D box of cells much wider than high: see ThinCaseBound
 };
+
+// The largest angle that refinement may make on a 2D box of right triangles of width hx and height
+// hy <= hx / 10. Every cell has one vertical (short) edge, of length s at distance d from the opposite
+// vertex, and two long edges of slope at most hy / hx, with s / d <= hy / hx: the long edges are unsafe
+// (the median to one has a slope within twice that bound, less than 30 degrees off it) and the longest,
+// the short one safe. So bisect.cpp cuts each cell by its short edge alone or by all three edges, and the
+// children are of the same kind: their edges are halves of the parent's, midlines parallel to them, and
+// medians between two of the parent's edges (the one to the short edge between the long ones; the one to
+// the longest edge, cut first, between it and the other long one), and s / d only shrinks. Their largest
+// angle lies at an end of the vertical edge: 90 degrees plus a long edge's angle with the x-axis, at most
+// 90 + atan(hy / hx) degrees. Rivara's closure there bisects the diagonal and makes angles near 180.
+static double ThinCaseBound(const Case &k)
+{
+  const double hx = (k.o.upper[0] - k.o.lower[0]) / k.o.faces[0], hy = (k.o.upper[1] - k.o.lower[1]) / k.o.faces[1];
+  return 90 + std::atan(hy / hx) * 180 / M_PI;
+}
 
 // Refines `steps` times (first by the radius, then the cells near the origin), checking each step; each
 // step is compared with the same steps on the whole mesh on one rank with its points numbered otherwise.
@@ -379,8 +419,9 @@ static PetscErrorCode TestCase(unit::Checker &ck, const Case &k, PetscInt steps)
   PetscCall(Renumber(&serial));
   PetscInt dim;
   PetscCall(DMGetDimension(dm, &dim));
-  double aspect0;
+  double aspect0, angle0;
   PetscCall(WorstAspect(dm, &aspect0));
+  if (k.thin) PetscCall(MaxAngle(dm, &angle0));
   std::vector<double> aspect;
   for (PetscInt s = 0; s < steps; ++s) {
     const Marker near = [&](const PetscReal *x, const std::vector<std::array<double, 3>> &v) {
@@ -419,6 +460,11 @@ static PetscErrorCode TestCase(unit::Checker &ck, const Case &k, PetscInt steps)
     double worst;
     PetscCall(WorstAspect(dm, &worst));
     aspect.push_back(worst);
+    if (k.thin) {
+      double angle;
+      PetscCall(MaxAngle(dm, &angle));
+      ck.Check(angle0 <= 90 + 1e-9 && angle <= ThinCaseBound(k) * (1 + 1e-9), tag + " no angle near 180 degrees: the largest angle is at most 90 + atan(hy / hx) degrees", "largest angle %.6f degrees (coarse %.6f), bound %.6f", angle, angle0, ThinCaseBound(k));
+    }
     PetscInt cells, cS, cE;
     PetscCall(DMPlexGetHeightStratum(dm, 0, &cS, &cE));
     cells = cE - cS;
@@ -504,6 +550,10 @@ int main(int argc, char **argv)
   Case cube;
   cube.name = "gmsh cube", cube.o.file = std::string(SIGNORINI_TEST_DATA) + "/cube.msh", cube.radius = 0.5, cube.far = 1.2;
   cases.push_back(cube);
+  // Cells of aspect ratio 100; the closure refines whole columns, so a few steps only.
+  Case thin;
+  thin.name = "box 8x8 of aspect ratio 100", thin.o.coarsen = false, thin.o.upper[1] = 0.01, thin.radius = 0.3, thin.far = 0.8, thin.thin = true;
+  cases.push_back(thin);
   // The same with all edges of the marked cells cut (-adapt_refinement bisection_all), fewer steps.
   const size_t longest = cases.size();
   for (size_t i = 0; i < longest; ++i) {
@@ -512,7 +562,7 @@ int main(int argc, char **argv)
     cases.push_back(all);
   }
   for (const Case &k : cases) {
-    PetscErrorCode ierr = TestCase(ck, k, k.allEdges ? 8 : 12);
+    PetscErrorCode ierr = TestCase(ck, k, k.thin ? 4 : k.allEdges ? 8 : 12);
     if (ierr) ck.PetscFailure(ierr, k.name);
   }
   const int status = ck.Finish();
