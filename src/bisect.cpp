@@ -12,19 +12,21 @@
 //    the angle between the edge and the median to its midpoint; in a stretched triangle the median to
 //    the longest edge (and to the long leg of a right triangle) lies almost along it, so a longest-edge
 //    cut makes an angle near 180 degrees, and P1 and Crouzeix-Raviart gradients lose accuracy with it
-//    (the maximum angle condition). An edge is safe in a 2D cell when that median makes at least 30
-//    degrees with it (UnsafeEdges). A triangle whose longest edge is unsafe is cut either once, by its
-//    one marked edge if that is safe (the short leg of a thin right triangle: two children with angles
-//    of about 90 degrees), or by all three edges (four children close to similar to it), so its
-//    children's angles stay within its own and about 90 degrees. Shape-regular triangles (right isosceles
-//    ones and their bisections included) have a safe longest edge and are refined exactly as by Rivara.
-//    3D keeps Rivara's rule for every tetrahedron.
+//    (the maximum angle condition). An edge is safe in a cell when in each of the cell's faces with it
+//    that median makes at least 30 degrees with it (UnsafeEdges). A cell whose longest edge is unsafe is
+//    cut either once, by its one marked edge if that is safe (the short leg of a thin right triangle, the
+//    short edges of a flat tetrahedron: two children with angles of about 90 degrees), or by all its
+//    edges (four or eight children close to similar to it: a flat Kuhn tetrahedron's eight children are
+//    Kuhn tetrahedra again), so its children's angles stay within its own and about 90 degrees.
+//    Shape-regular cells (right isosceles triangles, Kuhn tetrahedra of a cube, and their bisections
+//    included) have a safe longest edge and are refined exactly as by Rivara.
 //  - Each cell bisects its marked edges one after the other in the global order, each bisection cutting
 //    every current child that has the whole edge (an edge not yet bisected is whole in some child).
 //    Restricted to a face, this is the face's own sequence of bisections of its marked edges in the same
 //    order (a cut by an edge off the face leaves the face's pieces whole), so the two cells of a face cut
-//    it alike. In 2D a face is an edge, so any set of marked edges gives a conforming mesh; in 3D, every
-//    tetrahedron with a marked edge cuts its longest first.
+//    it alike, whatever set of its edges is marked (a cut by an edge of the face splits exactly the pieces
+//    of the face that have the whole edge). So any set of marked edges gives a conforming mesh, in 2D
+//    and 3D.
 // New vertices are the midpoints of the marked edges.
 //
 // The fine DMPlex is built directly, as refine.cpp builds the uniform one (PETSc's DMPlexInterpolate of
@@ -253,27 +255,29 @@ PetscErrorCode SyncMarks(const Coarse &m, const Sharing &sh, std::vector<char> &
   PetscFunctionReturn(0);
 }
 
-// The edges of 2D cell c (bits k of kPair) whose bisection would make a flat child: the median from the
-// opposite vertex to the edge's midpoint makes an angle below 30 degrees with the edge (cos^2 above 3/4).
-// Bisecting an edge makes the angles of the median with it at the midpoint and keeps the parent's other
-// angles (split or whole), so a safe bisection makes no angle above max(parent's, 150 degrees). The sums
-// are symmetric in the edge's two vertices (their difference flips sign exactly, their sum is the same),
-// so every rank decides alike from the same coordinates. 3D: none (the closure there is Rivara's).
+// The edges of cell c (bits k of kPair) whose bisection would make a flat child: in a face of c with the
+// edge, the median from the face's opposite vertex to the edge's midpoint makes an angle below 30 degrees
+// with the edge (cos^2 above 3/4). Bisecting an edge makes the angles of these medians with it at the
+// midpoint and keeps the faces' other angles (split or whole), so a safe bisection makes no face angle
+// above max(parent's, 150 degrees) in the faces it splits. The sums are symmetric in the edge's two
+// vertices (their difference flips sign exactly, their sum is the same), so every rank decides alike
+// from the same coordinates.
 int UnsafeEdges(const Coarse &m, PetscInt c)
 {
   constexpr PetscReal kCos2Alpha0 = 0.75;
-  if (m.dim != 2) return 0;
-  const PetscInt *cv = &m.cellVerts[3 * c];
-  int             bits = 0;
-  for (PetscInt k = 0; k < 3; ++k) {
-    const PetscReal *a = &m.x[3 * cv[kPair[k][0]]], *b = &m.x[3 * cv[kPair[k][1]]], *p = &m.x[3 * cv[3 - kPair[k][0] - kPair[k][1]]];
-    PetscReal        uu = 0, ww = 0, uw = 0;
-    for (int d = 0; d < 3; ++d) {
-      const PetscReal u = b[d] - a[d], w = 0.5 * (a[d] + b[d]) - p[d];
-      uu += u * u, ww += w * w, uw += u * w;
+  const PetscInt     *cv = &m.cellVerts[(m.dim + 1) * c];
+  int                 bits = 0;
+  for (PetscInt k = 0; k < m.nce; ++k)
+    for (PetscInt i = 0; i <= m.dim; ++i) {
+      if (i == kPair[k][0] || i == kPair[k][1]) continue;
+      const PetscReal *a = &m.x[3 * cv[kPair[k][0]]], *b = &m.x[3 * cv[kPair[k][1]]], *p = &m.x[3 * cv[i]];
+      PetscReal        uu = 0, ww = 0, uw = 0;
+      for (int d = 0; d < 3; ++d) {
+        const PetscReal u = b[d] - a[d], w = 0.5 * (a[d] + b[d]) - p[d];
+        uu += u * u, ww += w * w, uw += u * w;
+      }
+      if (uw * uw > kCos2Alpha0 * uu * ww) bits |= 1 << k;
     }
-    if (uw * uw > kCos2Alpha0 * uu * ww) bits |= 1 << k;
-  }
   return bits;
 }
 

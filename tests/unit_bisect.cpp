@@ -210,24 +210,40 @@ static PetscErrorCode WorstAspect(DM dm, double *worst)
   PetscFunctionReturn(0);
 }
 
-// Largest angle over the cells of a 2D mesh (global), in degrees.
-static PetscErrorCode MaxAngle(DM dm, double *largest)
+// Largest angles over the cells (global), in degrees: of their faces' corners (a triangle's own), and in
+// 3D between two faces at an edge (the dihedral angles; 0 in 2D).
+static PetscErrorCode MaxAngles(DM dm, double *face, double *dihedral)
 {
   PetscInt cS, cE;
   PetscFunctionBeginUser;
-  *largest = 0;
+  double largest[2] = {0, 0};
+  using Vec3        = std::array<double, 3>;
+  const auto angle  = [](const Vec3 &u, const Vec3 &w) {
+    const double dot = u[0] * w[0] + u[1] * w[1] + u[2] * w[2];
+    return std::acos(std::clamp(dot / std::sqrt((u[0] * u[0] + u[1] * u[1] + u[2] * u[2]) * (w[0] * w[0] + w[1] * w[1] + w[2] * w[2])), -1.0, 1.0)) * 180 / M_PI;
+  };
+  const auto minus = [](const Vec3 &a, const Vec3 &b) { return Vec3{a[0] - b[0], a[1] - b[1], a[2] - b[2]}; };
   PetscCall(DMPlexGetHeightStratum(dm, 0, &cS, &cE));
   for (PetscInt c = cS; c < cE; ++c) {
-    std::vector<std::array<double, 3>> v;
+    std::vector<Vec3> v;
     PetscCall(unit::PointVertices(dm, c, v));
-    for (int i = 0; i < 3; ++i) {
-      const auto &a = v[i], &b = v[(i + 1) % 3], &p = v[(i + 2) % 3];
-      double      dot = 0, ua = 0, ub = 0;
-      for (int d = 0; d < 3; ++d) dot += (a[d] - p[d]) * (b[d] - p[d]), ua += (a[d] - p[d]) * (a[d] - p[d]), ub += (b[d] - p[d]) * (b[d] - p[d]);
-      *largest = std::max(*largest, std::acos(std::clamp(dot / std::sqrt(ua * ub), -1.0, 1.0)) * 180 / M_PI);
-    }
+    const int n = (int)v.size();
+    // The corner at p between a and b; for each edge (p, a) of a tetrahedron, the angle between the
+    // components of the other two edges from p orthogonal to it.
+    for (int p = 0; p < n; ++p)
+      for (int a = 0; a < n; ++a)
+        for (int b = a + 1; b < n; ++b) {
+          if (a == p || b == p) continue;
+          largest[0] = std::max(largest[0], angle(minus(v[a], v[p]), minus(v[b], v[p])));
+          if (n < 4) continue;
+          const int q = 6 - p - a - b; // the 4th vertex: the dihedral angle at edge (p, q)
+          const Vec3 e = minus(v[q], v[p]), u = minus(v[a], v[p]), w = minus(v[b], v[p]);
+          const double ee = e[0] * e[0] + e[1] * e[1] + e[2] * e[2], ue = (u[0] * e[0] + u[1] * e[1] + u[2] * e[2]) / ee, we = (w[0] * e[0] + w[1] * e[1] + w[2] * e[2]) / ee;
+          largest[1] = std::max(largest[1], angle(Vec3{u[0] - ue * e[0], u[1] - ue * e[1], u[2] - ue * e[2]}, Vec3{w[0] - we * e[0], w[1] - we * e[1], w[2] - we * e[2]}));
+        }
   }
-  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, largest, 1, MPI_DOUBLE, MPI_MAX, PetscObjectComm((PetscObject)dm)));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, largest, 2, MPI_DOUBLE, MPI_MAX, PetscObjectComm((PetscObject)dm)));
+  *face = largest[0], *dihedral = largest[1];
   PetscFunctionReturn(0);
 }
 
@@ -419,9 +435,9 @@ static PetscErrorCode TestCase(unit::Checker &ck, const Case &k, PetscInt steps)
   PetscCall(Renumber(&serial));
   PetscInt dim;
   PetscCall(DMGetDimension(dm, &dim));
-  double aspect0, angle0;
+  double aspect0, angle0 = 0, dihedral0 = 0;
   PetscCall(WorstAspect(dm, &aspect0));
-  if (k.thin) PetscCall(MaxAngle(dm, &angle0));
+  if (k.thin) PetscCall(MaxAngles(dm, &angle0, &dihedral0));
   std::vector<double> aspect;
   for (PetscInt s = 0; s < steps; ++s) {
     const Marker near = [&](const PetscReal *x, const std::vector<std::array<double, 3>> &v) {
@@ -461,8 +477,9 @@ static PetscErrorCode TestCase(unit::Checker &ck, const Case &k, PetscInt steps)
     PetscCall(WorstAspect(dm, &worst));
     aspect.push_back(worst);
     if (k.thin) {
-      double angle;
-      PetscCall(MaxAngle(dm, &angle));
+      double angle, dihedral;
+      PetscCall(MaxAngles(dm, &angle, &dihedral));
+      PetscCall(PetscPrintf(PETSC_COMM_WORLD, "  %s: largest face angle %.4f, dihedral angle %.4f degrees\n", tag.c_str(), angle, dihedral));
       ck.Check(angle0 <= 90 + 1e-9 && angle <= ThinCaseBound(k) * (1 + 1e-9), tag + " no angle near 180 degrees: the largest angle is at most 90 + atan(hy / hx) degrees", "largest angle %.6f degrees (coarse %.6f), bound %.6f", angle, angle0, ThinCaseBound(k));
     }
     PetscInt cells, cS, cE;
@@ -553,6 +570,8 @@ int main(int argc, char **argv)
   // Cells of aspect ratio 100; the closure refines whole columns, so a few steps only.
   Case thin;
   thin.name = "box 8x8 of aspect ratio 100", thin.o.coarsen = false, thin.o.upper[1] = 0.01, thin.radius = 0.3, thin.far = 0.8, thin.thin = true;
+  cases.push_back(thin);
+  thin.name = "box 4x4x4 of aspect ratio 100", thin.o.dim = 3, thin.o.faces[0] = thin.o.faces[1] = thin.o.faces[2] = 4, thin.o.upper[1] = 1, thin.o.upper[2] = 0.01;
   cases.push_back(thin);
   // The same with all edges of the marked cells cut (-adapt_refinement bisection_all), fewer steps.
   const size_t longest = cases.size();
