@@ -13,13 +13,15 @@
 //    the longest edge (and to the long leg of a right triangle) lies almost along it, so a longest-edge
 //    cut makes an angle near 180 degrees, and P1 and Crouzeix-Raviart gradients lose accuracy with it
 //    (the maximum angle condition). An edge is safe in a cell when in each of the cell's faces with it
-//    that median makes at least 30 degrees with it (UnsafeEdges). A cell whose longest edge is unsafe is
+//    that median makes at least 30 degrees with it (UnsafeCuts). A cell whose longest edge is unsafe is
 //    cut either once, by its one marked edge if that is safe (the short leg of a thin right triangle, the
-//    short edges of a flat tetrahedron: two children with angles of about 90 degrees), or by all its
-//    edges (four or eight children close to similar to it: a flat Kuhn tetrahedron's eight children are
-//    Kuhn tetrahedra again), so its children's angles stay within its own and about 90 degrees.
-//    Shape-regular cells (right isosceles triangles, Kuhn tetrahedra of a cube, and their bisections
-//    included) have a safe longest edge and are refined exactly as by Rivara.
+//    short edges of a flat tetrahedron: two children with angles of about 90 degrees), or by all edges
+//    of one face when its edges are safe in the other faces (a cone over the face's four children), or
+//    by all its edges (four or eight children close to similar to it: a flat Kuhn tetrahedron's eight
+//    children are Kuhn tetrahedra again), see ThinRule; a tetrahedron with a safe longest edge follows
+//    Rivara but also ThinRule's clause on unsafe marked edges. Shape-regular cells (right isosceles
+//    triangles, Kuhn tetrahedra of a cube, and their bisections included) have no unsafe edge and are
+//    refined exactly as by Rivara.
 //  - Each cell bisects its marked edges one after the other in the global order, each bisection cutting
 //    every current child that has the whole edge (an edge not yet bisected is whole in some child).
 //    Restricted to a face, this is the face's own sequence of bisections of its marked edges in the same
@@ -255,14 +257,14 @@ PetscErrorCode SyncMarks(const Coarse &m, const Sharing &sh, std::vector<char> &
   PetscFunctionReturn(0);
 }
 
-// The edges of cell c (bits k of kPair) whose bisection would make a flat child: in a face of c with the
-// edge, the median from the face's opposite vertex to the edge's midpoint makes an angle below 30 degrees
-// with the edge (cos^2 above 3/4). Bisecting an edge makes the angles of these medians with it at the
-// midpoint and keeps the faces' other angles (split or whole), so a safe bisection makes no face angle
-// above max(parent's, 150 degrees) in the faces it splits. The sums are symmetric in the edge's two
-// vertices (their difference flips sign exactly, their sum is the same), so every rank decides alike
-// from the same coordinates.
-int UnsafeEdges(const Coarse &m, PetscInt c)
+// Which bisections of cell c would make a flat child: bit 4 k + i when in the face of c with edge k (of
+// kPair) and vertex i, the median from i to the edge's midpoint makes an angle below 30 degrees with the
+// edge (cos^2 above 3/4). Bisecting an edge makes the angles of these medians with it at the midpoint
+// and keeps the faces' other angles (split or whole), so a safe bisection makes no face angle above
+// max(parent's, 150 degrees) in the faces it splits. The sums are symmetric in the edge's two vertices
+// (their difference flips sign exactly, their sum is the same), so every rank decides alike from the
+// same coordinates.
+int UnsafeCuts(const Coarse &m, PetscInt c)
 {
   constexpr PetscReal kCos2Alpha0 = 0.75;
   const PetscInt     *cv = &m.cellVerts[(m.dim + 1) * c];
@@ -276,9 +278,50 @@ int UnsafeEdges(const Coarse &m, PetscInt c)
         const PetscReal u = b[d] - a[d], w = 0.5 * (a[d] + b[d]) - p[d];
         uu += u * u, ww += w * w, uw += u * w;
       }
-      if (uw * uw > kCos2Alpha0 * uu * ww) bits |= 1 << k;
+      if (uw * uw > kCos2Alpha0 * uu * ww) bits |= 1 << (4 * k + i);
     }
   return bits;
+}
+
+// The edges (bits k of kPair) that the rule of a thin cell c (longest edge unsafe) adds to its marked
+// edges `marked`, from its unsafe cuts (UnsafeCuts): Horn clauses, so the closure stays monotone (more
+// marks never add fewer edges) and its least fixed point is independent of the order. `pairs`: the
+// clauses on two marked edges apply (not for a tetrahedron cut by Rivara's rule: see CloseMarks).
+//  - An edge unsafe in a face, or two marked edges of a face, need that face cut by all its edges. In
+//    2D the face is the cell. In 3D the face alone (a cone from the opposite vertex over the face's four
+//    children) when its edges are safe in the other faces with them: the faces through the vertex are
+//    cut once, safely. (A flat Kuhn tetrahedron's steep faces are such: cutting all six edges of every
+//    tetrahedron with a marked edge spread over the whole of a flat box, where every horizontal edge lies
+//    in a steep face in which it is unsafe.) Otherwise the whole cell.
+//  - Two opposite marked edges (3D) need all edges.
+// What is left is no mark, one safe edge, a face, or all edges.
+int ThinRule(const Coarse &m, int unsafe, int marked, bool pairs)
+{
+  const int all = (1 << m.nce) - 1;
+  // The edges of the face opposite vertex f of a tetrahedron if they are safe in the other faces with
+  // them, else all.
+  const auto face = [&](PetscInt f) {
+    if (m.dim == 2) return all;
+    int edges = 0;
+    for (PetscInt k = 0; k < 6; ++k)
+      if (kPair[k][0] != f && kPair[k][1] != f) {
+        if (unsafe >> (4 * k + f) & 1) return all;
+        edges |= 1 << k;
+      }
+    return edges;
+  };
+  int add = 0;
+  for (PetscInt k = 0; k < m.nce; ++k) {
+    if (!(marked >> k & 1)) continue;
+    for (PetscInt i = 0; i <= m.dim; ++i)
+      if (unsafe >> (4 * k + i) & 1) add |= face(6 - kPair[k][0] - kPair[k][1] - i); // 2D: any
+    for (PetscInt l = k + 1; pairs && l < m.nce; ++l) {
+      if (!(marked >> l & 1)) continue;
+      const int verts = 1 << kPair[k][0] | 1 << kPair[k][1] | 1 << kPair[l][0] | 1 << kPair[l][1];
+      add |= verts == 15 ? all : face(kOpposite[verts]);
+    }
+  }
+  return add;
 }
 
 // The closure of the marks (see the top of the file), with shared edges agreed between ranks.
@@ -286,14 +329,15 @@ PetscErrorCode CloseMarks(MPI_Comm comm, const Coarse &m, const Sharing &sh, con
 {
   const PetscInt nc = m.NumCells(), ne = m.NumEdges();
   std::vector<PetscInt> longest(nc), starStart(ne + 1, 0), star(m.nce * nc), work;
-  std::vector<char>     unsafe(nc), rivara(nc);
+  std::vector<int>      unsafe(nc);
+  std::vector<char>     rivara(nc);
   PetscFunctionBeginUser;
   for (PetscInt c = 0; c < nc; ++c) {
     const PetscInt *edges = &m.cellEdges[m.nce * c];
     const PetscInt  first = std::min_element(edges, edges + m.nce, before) - edges;
     longest[c]            = edges[first];
-    unsafe[c]             = (char)UnsafeEdges(m, c);
-    rivara[c]             = !(unsafe[c] >> first & 1);
+    unsafe[c]             = UnsafeCuts(m, c);
+    rivara[c]             = !(unsafe[c] >> 4 * first & 15);
     for (PetscInt k = 0; k < m.nce; ++k) ++starStart[edges[k] + 1];
   }
   std::partial_sum(starStart.begin(), starStart.end(), starStart.begin());
@@ -306,16 +350,19 @@ PetscErrorCode CloseMarks(MPI_Comm comm, const Coarse &m, const Sharing &sh, con
   const auto markEdge = [&](PetscInt e) {
     if (!mark[e]) mark[e] = 1, work.push_back(e);
   };
-  // The rule of cell c with a marked edge: Rivara's, or a thin cell cut once by its one marked edge if
-  // that is safe, else by all its edges.
+  // The rule of cell c with a marked edge: Rivara's, or ThinRule. A tetrahedron cut by Rivara's rule
+  // needs ThinRule's unsafe clause too: it cuts its other marked edges in children whose faces are not
+  // its own, and an edge unsafe in it made angles of 178.85 degrees there (unit_bisect's flat box). 2D
+  // keeps the rule as it was (unit_bisect's ThinCaseBound analyses it on thin boxes).
   const auto close = [&](PetscInt c) {
-    if (rivara[c]) return markEdge(longest[c]);
+    if (rivara[c]) markEdge(longest[c]);
+    if (rivara[c] && m.dim == 2) return;
     const PetscInt *edges = &m.cellEdges[m.nce * c];
-    PetscInt        n = 0, bad = 0;
+    int             marks = 0;
+    for (PetscInt k = 0; k < m.nce; ++k) marks |= mark[edges[k]] << k;
+    const int add = ThinRule(m, unsafe[c], marks, !rivara[c]);
     for (PetscInt k = 0; k < m.nce; ++k)
-      if (mark[edges[k]]) ++n, bad |= unsafe[c] >> k & 1;
-    if (bad || n > 1)
-      for (PetscInt k = 0; k < m.nce; ++k) markEdge(edges[k]);
+      if (add >> k & 1) markEdge(edges[k]);
   };
   for (PetscInt c = 0; c < nc; ++c)
     if (marked[c]) {
