@@ -264,9 +264,8 @@ PetscErrorCode SyncMarks(const Coarse &m, const Sharing &sh, std::vector<char> &
 // max(parent's, 150 degrees) in the faces it splits. The sums are symmetric in the edge's two vertices
 // (their difference flips sign exactly, their sum is the same), so every rank decides alike from the
 // same coordinates.
-int UnsafeCuts(const Coarse &m, PetscInt c)
+int UnsafeCuts(const Coarse &m, PetscInt c, PetscReal cos2Alpha0)
 {
-  constexpr PetscReal kCos2Alpha0 = 0.75;
   const PetscInt     *cv = &m.cellVerts[(m.dim + 1) * c];
   int                 bits = 0;
   for (PetscInt k = 0; k < m.nce; ++k)
@@ -278,7 +277,7 @@ int UnsafeCuts(const Coarse &m, PetscInt c)
         const PetscReal u = b[d] - a[d], w = 0.5 * (a[d] + b[d]) - p[d];
         uu += u * u, ww += w * w, uw += u * w;
       }
-      if (uw * uw > kCos2Alpha0 * uu * ww) bits |= 1 << (4 * k + i);
+      if (uw * uw > cos2Alpha0 * uu * ww) bits |= 1 << (4 * k + i);
     }
   return bits;
 }
@@ -324,19 +323,22 @@ int ThinRule(const Coarse &m, int unsafe, int marked, bool pairs)
   return add;
 }
 
+constexpr PetscReal kCos2Flat = 0.97;
+
 // The closure of the marks (see the top of the file), with shared edges agreed between ranks.
 PetscErrorCode CloseMarks(MPI_Comm comm, const Coarse &m, const Sharing &sh, const EdgeOrder &before, const std::vector<char> &marked, bool allEdges, std::vector<char> &mark)
 {
   const PetscInt nc = m.NumCells(), ne = m.NumEdges();
   std::vector<PetscInt> longest(nc), starStart(ne + 1, 0), star(m.nce * nc), work;
-  std::vector<int>      unsafe(nc);
+  std::vector<int>      unsafe(nc), flat(nc);
   std::vector<char>     rivara(nc);
   PetscFunctionBeginUser;
   for (PetscInt c = 0; c < nc; ++c) {
     const PetscInt *edges = &m.cellEdges[m.nce * c];
     const PetscInt  first = std::min_element(edges, edges + m.nce, before) - edges;
     longest[c]            = edges[first];
-    unsafe[c]             = UnsafeCuts(m, c);
+    unsafe[c]             = UnsafeCuts(m, c, 0.75);
+    flat[c]               = m.dim == 3 ? UnsafeCuts(m, c, kCos2Flat) : 0;
     rivara[c]             = !(unsafe[c] >> 4 * first & 15);
     for (PetscInt k = 0; k < m.nce; ++k) ++starStart[edges[k] + 1];
   }
@@ -356,11 +358,11 @@ PetscErrorCode CloseMarks(MPI_Comm comm, const Coarse &m, const Sharing &sh, con
   // keeps the rule as it was (unit_bisect's ThinCaseBound analyses it on thin boxes).
   const auto close = [&](PetscInt c) {
     if (rivara[c]) markEdge(longest[c]);
-    if (rivara[c] && m.dim == 2) return;
+    if (rivara[c] && !flat[c]) return;
     const PetscInt *edges = &m.cellEdges[m.nce * c];
     int             marks = 0;
     for (PetscInt k = 0; k < m.nce; ++k) marks |= mark[edges[k]] << k;
-    const int add = ThinRule(m, unsafe[c], marks, !rivara[c]);
+    const int add = ThinRule(m, rivara[c] ? flat[c] : unsafe[c], marks, !rivara[c]);
     for (PetscInt k = 0; k < m.nce; ++k)
       if (add >> k & 1) markEdge(edges[k]);
   };
