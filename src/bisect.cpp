@@ -18,10 +18,12 @@
 //    short edges of a flat tetrahedron: two children with angles of about 90 degrees), or by all edges
 //    of one face when its edges are safe in the other faces (a cone over the face's four children), or
 //    by all its edges (four or eight children close to similar to it: a flat Kuhn tetrahedron's eight
-//    children are Kuhn tetrahedra again), see ThinRule; a tetrahedron with a safe longest edge follows
-//    Rivara but also ThinRule's clause on unsafe marked edges. Shape-regular cells (right isosceles
-//    triangles, Kuhn tetrahedra of a cube, and their bisections included) have no unsafe edge and are
-//    refined exactly as by Rivara.
+//    children are Kuhn tetrahedra again), see ThinRule. So is a tetrahedron with a cut below 10 degrees
+//    (kCos2Flat) even if its longest edge is safe: Rivara's rule there cut its other marked edges in
+//    children whose faces are not its own (angles of 178.85 degrees), and marked the longest edge, a
+//    body diagonal, for a vertical edge, which spread the refinement over the whole of a flat box. Shape-
+//    regular cells (right isosceles triangles, Kuhn tetrahedra of a cube, and their bisections included)
+//    have a safe longest edge and no such cut, and are refined exactly as by Rivara.
 //  - Each cell bisects its marked edges one after the other in the global order, each bisection cutting
 //    every current child that has the whole edge (an edge not yet bisected is whole in some child).
 //    Restricted to a face, this is the face's own sequence of bisections of its marked edges in the same
@@ -259,7 +261,7 @@ PetscErrorCode SyncMarks(const Coarse &m, const Sharing &sh, std::vector<char> &
 
 // Which bisections of cell c would make a flat child: bit 4 k + i when in the face of c with edge k (of
 // kPair) and vertex i, the median from i to the edge's midpoint makes an angle below 30 degrees with the
-// edge (cos^2 above 3/4). Bisecting an edge makes the angles of these medians with it at the midpoint
+// edge (cos^2 above cos2Alpha0: 3/4). Bisecting an edge makes the angles of these medians with it at the midpoint
 // and keeps the faces' other angles (split or whole), so a safe bisection makes no face angle above
 // max(parent's, 150 degrees) in the faces it splits. The sums are symmetric in the edge's two vertices
 // (their difference flips sign exactly, their sum is the same), so every rank decides alike from the
@@ -282,10 +284,9 @@ int UnsafeCuts(const Coarse &m, PetscInt c, PetscReal cos2Alpha0)
   return bits;
 }
 
-// The edges (bits k of kPair) that the rule of a thin cell c (longest edge unsafe) adds to its marked
+// The edges (bits k of kPair) that the rule of a thin cell c (see CloseMarks) adds to its marked
 // edges `marked`, from its unsafe cuts (UnsafeCuts): Horn clauses, so the closure stays monotone (more
-// marks never add fewer edges) and its least fixed point is independent of the order. `pairs`: the
-// clauses on two marked edges apply (not for a tetrahedron cut by Rivara's rule: see CloseMarks).
+// marks never add fewer edges) and its least fixed point is independent of the order.
 //  - An edge unsafe in a face, or two marked edges of a face, need that face cut by all its edges. In
 //    2D the face is the cell. In 3D the face alone (a cone from the opposite vertex over the face's four
 //    children) when its edges are safe in the other faces with them: the faces through the vertex are
@@ -294,7 +295,7 @@ int UnsafeCuts(const Coarse &m, PetscInt c, PetscReal cos2Alpha0)
 //    in a steep face in which it is unsafe.) Otherwise the whole cell.
 //  - Two opposite marked edges (3D) need all edges.
 // What is left is no mark, one safe edge, a face, or all edges.
-int ThinRule(const Coarse &m, int unsafe, int marked, bool pairs)
+int ThinRule(const Coarse &m, int unsafe, int marked)
 {
   const int all = (1 << m.nce) - 1;
   // The edges of the face opposite vertex f of a tetrahedron if they are safe in the other faces with
@@ -314,7 +315,7 @@ int ThinRule(const Coarse &m, int unsafe, int marked, bool pairs)
     if (!(marked >> k & 1)) continue;
     for (PetscInt i = 0; i <= m.dim; ++i)
       if (unsafe >> (4 * k + i) & 1) add |= face(6 - kPair[k][0] - kPair[k][1] - i); // 2D: any
-    for (PetscInt l = k + 1; pairs && l < m.nce; ++l) {
+    for (PetscInt l = k + 1; l < m.nce; ++l) {
       if (!(marked >> l & 1)) continue;
       const int verts = 1 << kPair[k][0] | 1 << kPair[k][1] | 1 << kPair[l][0] | 1 << kPair[l][1];
       add |= verts == 15 ? all : face(kOpposite[verts]);
@@ -323,6 +324,10 @@ int ThinRule(const Coarse &m, int unsafe, int marked, bool pairs)
   return add;
 }
 
+// A tetrahedron is thin if a cut makes an angle below 10 degrees (cos^2 above 0.97), even with a safe
+// longest edge (see the top of the file). Kuhn tetrahedra of a cube and their bisections are not, as
+// measured: paper-5.1-3d and manufactured-3d refine as before over three steps (with 30 degrees, or with
+// Rivara's rule plus the unsafe-edge clause at 30 degrees, their meshes changed from the third step).
 constexpr PetscReal kCos2Flat = 0.97;
 
 // The closure of the marks (see the top of the file), with shared edges agreed between ranks.
@@ -330,7 +335,7 @@ PetscErrorCode CloseMarks(MPI_Comm comm, const Coarse &m, const Sharing &sh, con
 {
   const PetscInt nc = m.NumCells(), ne = m.NumEdges();
   std::vector<PetscInt> longest(nc), starStart(ne + 1, 0), star(m.nce * nc), work;
-  std::vector<int>      unsafe(nc), flat(nc);
+  std::vector<int>      unsafe(nc);
   std::vector<char>     rivara(nc);
   PetscFunctionBeginUser;
   for (PetscInt c = 0; c < nc; ++c) {
@@ -338,8 +343,7 @@ PetscErrorCode CloseMarks(MPI_Comm comm, const Coarse &m, const Sharing &sh, con
     const PetscInt  first = std::min_element(edges, edges + m.nce, before) - edges;
     longest[c]            = edges[first];
     unsafe[c]             = UnsafeCuts(m, c, 0.75);
-    flat[c]               = m.dim == 3 ? UnsafeCuts(m, c, kCos2Flat) : 0;
-    rivara[c]             = !(unsafe[c] >> 4 * first & 15);
+    rivara[c]             = !(unsafe[c] >> 4 * first & 15) && !(m.dim == 3 && UnsafeCuts(m, c, kCos2Flat));
     for (PetscInt k = 0; k < m.nce; ++k) ++starStart[edges[k] + 1];
   }
   std::partial_sum(starStart.begin(), starStart.end(), starStart.begin());
@@ -352,17 +356,13 @@ PetscErrorCode CloseMarks(MPI_Comm comm, const Coarse &m, const Sharing &sh, con
   const auto markEdge = [&](PetscInt e) {
     if (!mark[e]) mark[e] = 1, work.push_back(e);
   };
-  // The rule of cell c with a marked edge: Rivara's, or ThinRule. A tetrahedron cut by Rivara's rule
-  // needs ThinRule's unsafe clause too: it cuts its other marked edges in children whose faces are not
-  // its own, and an edge unsafe in it made angles of 178.85 degrees there (unit_bisect's flat box). 2D
-  // keeps the rule as it was (unit_bisect's ThinCaseBound analyses it on thin boxes).
+  // The rule of cell c with a marked edge: Rivara's, or ThinRule.
   const auto close = [&](PetscInt c) {
-    if (rivara[c]) markEdge(longest[c]);
-    if (rivara[c] && !flat[c]) return;
+    if (rivara[c]) return markEdge(longest[c]);
     const PetscInt *edges = &m.cellEdges[m.nce * c];
     int             marks = 0;
     for (PetscInt k = 0; k < m.nce; ++k) marks |= mark[edges[k]] << k;
-    const int add = ThinRule(m, rivara[c] ? flat[c] : unsafe[c], marks, !rivara[c]);
+    const int add = ThinRule(m, unsafe[c], marks);
     for (PetscInt k = 0; k < m.nce; ++k)
       if (add >> k & 1) markEdge(edges[k]);
   };
