@@ -259,17 +259,24 @@ PetscErrorCode SyncMarks(const Coarse &m, const Sharing &sh, std::vector<char> &
   PetscFunctionReturn(0);
 }
 
+// A tetrahedron is thin if a cut makes an angle below 10 degrees (cos^2 above 0.97), even with a safe
+// longest edge (see the top of the file). Kuhn tetrahedra of a cube and their bisections are not, as
+// measured: paper-5.1-3d and manufactured-3d refine as before over three steps (with 30 degrees, or with
+// Rivara's rule plus the unsafe-edge clause at 30 degrees, their meshes changed from the third step).
+constexpr PetscReal kCos2Flat = 0.97;
+
 // Which bisections of cell c would make a flat child: bit 4 k + i when in the face of c with edge k (of
-// kPair) and vertex i, the median from i to the edge's midpoint makes an angle below alpha0 with the
-// edge (cos^2 above cos2Alpha0; 30 degrees: 3/4). Bisecting an edge makes the angles of these medians
-// with it at the midpoint and keeps the faces' other angles (split or whole), so a safe bisection makes
-// no face angle above max(parent's, 150 degrees) in the faces it splits. The sums are symmetric in the edge's two vertices
-// (their difference flips sign exactly, their sum is the same), so every rank decides alike from the
-// same coordinates.
-int UnsafeCuts(const Coarse &m, PetscInt c, PetscReal cos2Alpha0)
+// kPair) and vertex i, the median from i to the edge's midpoint makes an angle below 30 degrees with the
+// edge (cos^2 above 3/4); *flat: whether one makes an angle below 10 degrees (kCos2Flat). Bisecting an
+// edge makes the angles of these medians with it at the midpoint and keeps the faces' other angles
+// (split or whole), so a safe bisection makes no face angle above max(parent's, 150 degrees) in the
+// faces it splits. The sums are symmetric in the edge's two vertices (their difference flips sign
+// exactly, their sum is the same), so every rank decides alike from the same coordinates.
+int UnsafeCuts(const Coarse &m, PetscInt c, bool *flat)
 {
-  const PetscInt     *cv = &m.cellVerts[(m.dim + 1) * c];
-  int                 bits = 0;
+  const PetscInt *cv   = &m.cellVerts[(m.dim + 1) * c];
+  int             bits = 0;
+  *flat                = false;
   for (PetscInt k = 0; k < m.nce; ++k)
     for (PetscInt i = 0; i <= m.dim; ++i) {
       if (i == kPair[k][0] || i == kPair[k][1]) continue;
@@ -279,7 +286,8 @@ int UnsafeCuts(const Coarse &m, PetscInt c, PetscReal cos2Alpha0)
         const PetscReal u = b[d] - a[d], w = 0.5 * (a[d] + b[d]) - p[d];
         uu += u * u, ww += w * w, uw += u * w;
       }
-      if (uw * uw > cos2Alpha0 * uu * ww) bits |= 1 << (4 * k + i);
+      if (uw * uw > 0.75 * uu * ww) bits |= 1 << (4 * k + i);
+      *flat = *flat || uw * uw > kCos2Flat * uu * ww;
     }
   return bits;
 }
@@ -325,26 +333,18 @@ int ThinRule(const Coarse &m, int unsafe, int marked)
   return add;
 }
 
-// A tetrahedron is thin if a cut makes an angle below 10 degrees (cos^2 above 0.97), even with a safe
-// longest edge (see the top of the file). Kuhn tetrahedra of a cube and their bisections are not, as
-// measured: paper-5.1-3d and manufactured-3d refine as before over three steps (with 30 degrees, or with
-// Rivara's rule plus the unsafe-edge clause at 30 degrees, their meshes changed from the third step).
-constexpr PetscReal kCos2Flat = 0.97;
-
 // The closure of the marks (see the top of the file), with shared edges agreed between ranks.
 PetscErrorCode CloseMarks(MPI_Comm comm, const Coarse &m, const Sharing &sh, const EdgeOrder &before, const std::vector<char> &marked, bool allEdges, std::vector<char> &mark)
 {
   const PetscInt nc = m.NumCells(), ne = m.NumEdges();
   std::vector<PetscInt> longest(nc), starStart(ne + 1, 0), star(m.nce * nc), work;
-  std::vector<int>      unsafe(nc);
-  std::vector<char>     rivara(nc);
+  std::vector<int>      unsafe(nc, -1); // UnsafeCuts, found when the closure first reaches the cell
+  std::vector<char>     rivara(nc), first(nc);
   PetscFunctionBeginUser;
   for (PetscInt c = 0; c < nc; ++c) {
     const PetscInt *edges = &m.cellEdges[m.nce * c];
-    const PetscInt  first = std::min_element(edges, edges + m.nce, before) - edges;
-    longest[c]            = edges[first];
-    unsafe[c]             = UnsafeCuts(m, c, 0.75);
-    rivara[c]             = !(unsafe[c] >> 4 * first & 15) && !(m.dim == 3 && UnsafeCuts(m, c, kCos2Flat));
+    first[c]              = (char)(std::min_element(edges, edges + m.nce, before) - edges);
+    longest[c]            = edges[(int)first[c]];
     for (PetscInt k = 0; k < m.nce; ++k) ++starStart[edges[k] + 1];
   }
   std::partial_sum(starStart.begin(), starStart.end(), starStart.begin());
@@ -359,6 +359,11 @@ PetscErrorCode CloseMarks(MPI_Comm comm, const Coarse &m, const Sharing &sh, con
   };
   // The rule of cell c with a marked edge: Rivara's, or ThinRule.
   const auto close = [&](PetscInt c) {
+    if (unsafe[c] < 0) {
+      bool flat;
+      unsafe[c] = UnsafeCuts(m, c, &flat);
+      rivara[c] = !(unsafe[c] >> 4 * first[c] & 15) && !(m.dim == 3 && flat);
+    }
     if (rivara[c]) return markEdge(longest[c]);
     const PetscInt *edges = &m.cellEdges[m.nce * c];
     int             marks = 0;
