@@ -45,6 +45,7 @@ std::string AdaptTable(const std::vector<AdaptRow> &rows)
     if (last) o << "\n";
     else o << Format(" %8.3f %8.3f %8s %8.3f %8d\n", r.markSeconds, r.refineSeconds, r.redistributed ? Format("%.3f", r.redistributeSeconds).c_str() : "-", r.transferSeconds, (int)r.marked);
   }
+  if (rows[0].nestedLevels > 0) o << Format("  step 0 solved by nested iteration over %d refinement levels of its mesh, its setup and solve times those of all of them\n", (int)rows[0].nestedLevels);
   // the steps the reference cannot reach (AdaptiveRefinement::ReferenceErrors)
   for (size_t k = rows.size() - 1; reference && k-- > 0;)
     if (rows[k].redistributed) {
@@ -86,7 +87,13 @@ PetscErrorCode AdaptiveRefinement::Next(Step &step, bool &more)
   PetscFunctionBeginUser;
   more = !stop_;
   if (!more) PetscFunctionReturn(0);
-  if (step_ < 0) PetscCall(PetscTime(&start_));
+  if (start_ == 0) PetscCall(PetscTime(&start_));
+  if (nested_) { // a level of the first mesh's hierarchy; its finest level is step 0
+    PetscCall(nested_->Next(step, more));
+    PetscCheck(more, PetscObjectComm((PetscObject)mesh_), PETSC_ERR_PLIB, "nested iteration ended before the first mesh");
+    if (step.mesh == levels_->dm.back()) step_ = 0;
+    PetscFunctionReturn(0);
+  }
   if (++step_ > 0) PetscCall(Refine());
   step = Step{mesh_, options_};
   if (multigrid_) step.options.solve.amgReuse.hierarchy = &hierarchy_; // complete for this step once Carry ran
@@ -188,12 +195,23 @@ PetscErrorCode AdaptiveRefinement::Refine()
   PetscFunctionReturn(0);
 }
 
+void AdaptiveRefinement::StartNested(MeshLevels &levels, const NestedOptions &o)
+{
+  levels_             = &levels;
+  handover_.hierarchy = &hierarchy_;
+  nested_             = std::make_unique<NestedIteration>(levels, problem_, options_, o, &handover_);
+}
+
 PetscErrorCode AdaptiveRefinement::Carry(MeshSolution &cur, bool &carried)
 {
   PetscLogDouble t0;
   Vec            lowerh = nullptr;
   double         seconds;
   PetscFunctionBeginUser;
+  if (nested_) { // nested iteration builds the multigrid's transfers as it goes
+    PetscCall(nested_->Carry(cur, carried));
+    PetscFunctionReturn(0);
+  }
   if (multigrid_) PetscCall(MultigridTime([&] { return MultigridCarry(cur.space); }));
   carried = step_ > 0;
   if (!carried) PetscFunctionReturn(0);
@@ -218,6 +236,21 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
   PetscInt               n = m.space.NumCells();
   PetscLogDouble         now, t0;
   PetscFunctionBeginUser;
+  if (nested_) {
+    const bool first = step_ == 0;
+    PetscCall(nested_->Solved(std::move(m)));
+    if (!first) PetscFunctionReturn(0);
+    MeshSolution s0 = std::move(nested_->finest);
+    nested_->finest = MeshSolution(); // a moved MeshSolution still holds the handles
+    nested_.reset();
+    // the state MultigridCarry leaves after step 0, with the uniform levels below it
+    levelDofs_    = std::move(handover_.p1Dofs);
+    p1_           = handover_.p1;
+    handover_     = NestedHandover();
+    PetscCall(DMDestroy(&levels_->dm.back())); // mesh_ holds the first mesh
+    PetscCall(Solved(std::move(s0)));
+    PetscFunctionReturn(0);
+  }
   PetscCall(PetscTime(&now));
   row.runSeconds = now - start_ - excluded_;
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &row.runSeconds, 1, MPI_DOUBLE, MPI_MAX, comm));
@@ -226,6 +259,9 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
   row.newtonIts    = m.result.newtonIts;
   row.kspIts       = m.result.kspIts;
   row.setupSeconds = m.setupSeconds;
+  row.nestedLevels = (PetscInt)m.result.levels.size();
+  if (row.nestedLevels > 0) row.setupSeconds = 0; // all of nested iteration's levels (step 0)
+  for (const SolveResult::Level &l : m.result.levels) row.setupSeconds += l.setupSeconds;
   row.solveSeconds = m.result.solveSeconds + multigridSeconds_;
   multigridSeconds_ = 0;
   if (problem_.HasExact()) {

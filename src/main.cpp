@@ -102,11 +102,13 @@ static PetscErrorCode Run(MPI_Comm comm)
     if (given && !adaptive) SIGNORINI_INPUT_ERROR(comm, "option %s: applies to adaptive refinement only; give -adapt_steps K too", name);
   }
   // Nested iteration needs the coarser levels of the refinement; a scene without contact is one linear solve.
-  const bool nested = s.nested.enabled && s.mesh.refine > 0 && s.nested.levels != 0 && s.study.levels == 0 && !adaptive && !s.problem.contact.empty();
+  // An adaptive run solves its first mesh so too.
+  const bool nestedLevels = s.nested.enabled && s.mesh.refine > 0 && s.nested.levels != 0 && s.study.levels == 0 && !s.problem.contact.empty();
+  const bool nested       = nestedLevels && !adaptive;
   MeshLevels levels;
   // The scene is checked against the coarse mesh (dimension, boundary parts) before the refinement.
   // The sizes are checked against the coarse mesh before it is built (box) or distributed (file).
-  PetscCall(MeshCreate(comm, s.mesh, &mesh, meshInfo, nested ? &levels : nullptr, s.nested.levels, [&](DM coarse) {
+  PetscCall(MeshCreate(comm, s.mesh, &mesh, meshInfo, nestedLevels ? &levels : nullptr, s.nested.levels, [&](DM coarse) {
                          PetscInt cdim;
                          PetscFunctionBeginUser;
                          PetscCall(DMGetDimension(coarse, &cdim));
@@ -153,6 +155,7 @@ static PetscErrorCode Run(MPI_Comm comm)
     AdaptOptions adapt = s.adapt;
     if (s.nested.solveTo == NestedOptions::Discretization) adapt.solveToFraction = s.nested.fraction;
     AdaptiveRefinement strategy(mesh, s.problem, ao, adapt, s.errorDegree);
+    if (nestedLevels) strategy.StartNested(levels, s.nested);
     PetscCall(DMDestroy(&mesh)); // the strategy holds the mesh as long as it needs it
     PetscCall(SolveMeshes(s.problem, strategy));
     fine = std::move(strategy.finest);

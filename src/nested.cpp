@@ -75,7 +75,7 @@ PetscErrorCode NestedIteration::Next(Step &step, bool &more)
   prolongSeconds_ = 0;
   step.mesh       = levels_.dm[level_];
   step.options    = fine_;
-  step.options.solve.amgReuse.hierarchy = &hierarchy_; // complete for this level once Carry ran
+  step.options.solve.amgReuse.hierarchy = &H(); // complete for this level once Carry ran
   const auto withMesh = step.options.withMesh;
   step.options.withMesh = [this, l = level_, withMesh](const Space &space) -> PetscErrorCode {
     PetscCall(CoarseSpaceTransfers(l, space));
@@ -120,19 +120,24 @@ PetscErrorCode NestedIteration::CoarseSpaceTransfers(PetscInt l, const Space &sp
   PetscCall(PetscTime(&t0));
   PetscCall(SpaceCreateP1Of(levels_.dm[l], space, problem_, p1));
   PetscCall(SpaceReleaseMesh(p1));
-  if (!hierarchy_.P.empty()) { // the transfer of the level before from its CR space to its P1 space
-    PetscCall(MatDestroy(&hierarchy_.P.back()));
-    hierarchy_.P.pop_back();
+  Hierarchy &h = H();
+  if (!h.P.empty()) { // the transfer of the level before from its CR space to its P1 space
+    PetscCall(MatDestroy(&h.P.back()));
+    h.P.pop_back();
   }
   if (l > 0) {
     PetscCall(ProlongationMatrix(p1Prev_, p1, levels_.parent[l], &P));
-    hierarchy_.P.push_back(P);
+    h.P.push_back(P);
   }
   PetscCall(P1ToCRMatrix(p1, space, &P));
-  hierarchy_.P.push_back(P);
+  h.P.push_back(P);
+  if (handover_) handover_->p1Dofs.push_back(p1.numGlobal);
   std::swap(p1Prev_, p1);
   PetscCall(SpaceDestroy(p1));
-  if (l + 1 == levels_.Count()) PetscCall(SpaceDestroy(p1Prev_)); // no level after the finest needs it
+  if (l + 1 == levels_.Count() && handover_) { // the next transfer starts from it
+    handover_->p1 = p1Prev_;
+    p1Prev_       = Space(); // a copied Space still holds the handles
+  } else if (l + 1 == levels_.Count()) PetscCall(SpaceDestroy(p1Prev_)); // no level after the finest needs it
   PetscCall(SecondsSince(PetscObjectComm((PetscObject)P), t0, &seconds));
   prolongSeconds_ += seconds;
   PetscFunctionReturn(0);
@@ -153,7 +158,7 @@ PetscErrorCode NestedIteration::Carry(MeshSolution &cur, bool &carried)
     PetscCall(StagePush(Stage::Solve));
     PetscCall(ProlongationMatrix(prev_.space, cur.space, levels_.parent[level_], &P));
     PetscCall(StagePop(Stage::Solve));
-    hierarchy_.P.push_back(P);
+    H().P.push_back(P);
     PetscCall(SecondsSince(PetscObjectComm((PetscObject)cur.u), t0, &seconds));
     prolongSeconds_ += seconds;
   }
@@ -166,6 +171,7 @@ PetscErrorCode NestedIteration::Solved(MeshSolution &&m)
 {
   PetscFunctionBeginUser;
   summary_.push_back(LevelSummary(m.space, m.result, m.setupSeconds, prolongSeconds_));
+  if (handover_ && m.space.element == Element::P1) handover_->p1Dofs.push_back(m.space.numGlobal);
   summary_.back().energyError = energyError_;
   eta_ = m.estimate.eta;
   if (level_ + 1 < levels_.Count()) {
@@ -175,7 +181,7 @@ PetscErrorCode NestedIteration::Solved(MeshSolution &&m)
     PetscCall(SystemDestroy(prev_.sys)); // the prolongation needs the space and u only
     PetscFunctionReturn(0);
   }
-  PetscCall(hierarchy_.Destroy());
+  PetscCall(hierarchy_.Destroy()); // (empty with a handover)
   PetscCall(SpaceDestroy(p1Prev_));
   finest         = std::move(m);
   SolveResult &r = finest.result;

@@ -190,7 +190,7 @@ PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string
       const AdaptRow &a = r.adapt[k];
       o << (k ? ",\n    " : "\n    ") << "{\"cells\": " << a.cells << ", \"dofs\": " << a.dofs << ", \"eta\": " << Num(a.eta) << ", \"error\": " << (a.error >= 0 ? Num(a.error) : "null");
       o << ", \"error_reference\": " << (a.referenceError >= 0 ? Num(a.referenceError) : "null") << ", \"reference_step\": " << (a.reference ? "true" : "false");
-      o << ", \"newton\": " << a.newtonIts << ", \"ksp\": " << a.kspIts << ", \"marked\": " << a.marked << ", \"redistributed\": " << (a.redistributed ? "true" : "false");
+      o << ", \"newton\": " << a.newtonIts << ", \"ksp\": " << a.kspIts << ", \"nested_levels\": " << a.nestedLevels << ", \"marked\": " << a.marked << ", \"redistributed\": " << (a.redistributed ? "true" : "false");
       o << ", \"run_seconds\": " << Num(a.runSeconds) << ", \"setup_seconds\": " << Num(a.setupSeconds) << ", \"solve_seconds\": " << Num(a.solveSeconds) << ", \"estimate_seconds\": " << Num(a.estimateSeconds) << ", \"mark_seconds\": " << Num(a.markSeconds) << ", \"refine_seconds\": " << Num(a.refineSeconds);
       o << ", \"redistribute_seconds\": " << Num(a.redistributeSeconds) << ", \"transfer_seconds\": " << Num(a.transferSeconds) << "}";
     }

@@ -6,6 +6,8 @@
     conditions, and the summary describes the last mesh (cells, DOFs, the "adapt" rows);
   - on the singular scene stiff-below-h2 the estimate falls like DOFs^-1/2 (fitted slope over the last
     steps <= -0.45), where uniform refinement gives DOFs^-0.32;
+  - the first mesh, built by uniform refinement, is solved by nested iteration over its levels, with the
+    same adapted meshes as from u_D on it (-nested 0);
   - -adapt_tol stops at the first step whose eta is below it; -output writes the last mesh;
   - an option of the adaptive run (-adapt_tol, ...) without -adapt_steps is refused, not ignored;
   - bad input: one clear line each."""
@@ -70,6 +72,26 @@ for name, extra in [("manufactured-2d", ["-space", "p1", "-box_faces", "8", "-ad
     c.check(same and abs(s2["energy"] - s1["energy"]) <= 1e-9 * abs(s1["energy"]),
             "%s: the same adapted meshes and energy on 2 ranks, redistributed (%.15e, %.15e)" % (tag, s1["energy"], s2["energy"]))
     kkt_ok(tag, s2)
+
+# The first mesh solved by nested iteration over the levels it was refined from (the box 32 x 32 is built as
+# 8 x 8 refined twice, 8 x 8 x 8 as 4 x 4 x 4 refined once), and the later steps' multigrid down through
+# them: the same adapted meshes, estimates and energy as from u_D on the first mesh alone (-nested 0), an
+# independent solve of the same discrete problems, and on 2 ranks.
+for name, extra, levels in [("manufactured-2d", ["-box_faces", "32"], 3), ("manufactured-3d", ["-box_faces", "8"], 2)]:
+    for el in ["cr", "p1"]:
+        args = scene(name) + extra + ["-space", el, "-adapt_steps", "3"]
+        tag = "%s %s %s" % (name, el, " ".join(extra))
+        _, _, _, s = run(args)
+        _, _, _, alone = run(args + ["-nested", "0"])
+        _, _, _, s2 = run(args, ranks=2)
+        c.check([r["nested_levels"] for r in s["adapt"]] == [levels, 0, 0, 0] and [r["nested_levels"] for r in s2["adapt"]] == [levels, 0, 0, 0]
+                and all(r["nested_levels"] == 0 for r in alone["adapt"]),
+                "%s: step 0 by nested iteration over %d levels, with -nested 0 from u_D (%s, %s)" % (tag, levels, [r["nested_levels"] for r in s["adapt"]], [r["nested_levels"] for r in alone["adapt"]]))
+        for other, what in [(alone, "-nested 0"), (s2, "2 ranks")]:
+            same = [(a["cells"], a["dofs"], a["marked"]) for a in s["adapt"]] == [(b["cells"], b["dofs"], b["marked"]) for b in other["adapt"]]
+            deta = max(abs(a["eta"] - b["eta"]) / a["eta"] for a, b in zip(s["adapt"], other["adapt"]))
+            c.check(same and deta <= 1e-6 and abs(other["energy"] - s["energy"]) <= 1e-9 * abs(s["energy"]),
+                    "%s: the same adapted meshes as %s, eta within %.1e (<= 1e-6), energy %.15e against %.15e" % (tag, what, deta, s["energy"], other["energy"]))
 
 # The singular scene: u ~ r^(1/2) next to (1/2, 0).
 for el in ["cr", "p1"]:

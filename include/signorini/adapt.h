@@ -24,8 +24,11 @@
 
 #include "signorini/hierarchy.h"
 #include "signorini/localrefine.h"
+#include "signorini/nested.h"
 #include "signorini/strategy.h"
 #include "signorini/transfer.h"
+
+#include <memory>
 
 namespace signorini {
 
@@ -53,6 +56,7 @@ PetscErrorCode AdaptOptionsFromCommandLine(MPI_Comm comm, AdaptOptions &o);
 // the building of the multigrid's transfers to this mesh (-vi_pc_type mg), its preconditioner's data.
 struct AdaptRow {
   PetscInt  cells = 0, dofs = 0, newtonIts = 0, kspIts = 0, marked = 0;
+  PetscInt  nestedLevels = 0; // levels of the mesh's hierarchy solved by nested iteration, the mesh's own included (step 0, StartNested)
   PetscReal eta = 0, error = -1; // error: against the exact solution, energy norm (-1: not known)
   PetscReal referenceError = -1; // energy error against the adaptive reference (-1: none)
   double    setupSeconds = 0, solveSeconds = 0, estimateSeconds = 0, markSeconds = 0, refineSeconds = 0, redistributeSeconds = 0, transferSeconds = 0;
@@ -78,6 +82,11 @@ public:
   PetscErrorCode Next(Step &step, bool &more) override;
   PetscErrorCode Carry(MeshSolution &cur, bool &carried) override;
   PetscErrorCode Solved(MeshSolution &&m) override;
+  // Solve the first mesh by nested iteration over the refinement levels it was built by (levels.dm.back()
+  // is the first mesh), as a run without -adapt_steps does, instead of from u_D on the mesh alone: with
+  // -vi_pc_type mg the multigrid of every later step then goes on down through those levels, where
+  // without them its coarsest level, solved by BoomerAMG, would be the first mesh. Before the first Next.
+  void StartNested(MeshLevels &levels, const NestedOptions &o);
   // The run's result: the solution of the last step of the adaptive run (rows[finestStep]; reference
   // steps may follow it); the caller destroys it.
   MeshSolution          finest;
@@ -100,6 +109,11 @@ private:
   PetscInt          adaptEnd_ = -1; // the last step of the adaptive run proper, once known
   bool              stop_ = false;
   PetscLogDouble    start_ = 0;     // the first Next
+  // StartNested: the levels of the first mesh, solved by nested_ until it hands over its finest level as
+  // step 0 (levels_->dm.back() is dropped then: mesh_ holds the first mesh)
+  MeshLevels                      *levels_ = nullptr;
+  std::unique_ptr<NestedIteration> nested_;
+  NestedHandover                   handover_;
   double            excluded_ = 0;  // seconds of error computations, not run time
   std::vector<MeshSolution>          kept_;    // with reference steps: every step's space and u
   std::vector<std::vector<PetscInt>> parents_; // parents_[k]: cell of step k - 1 containing each cell of step k

@@ -56,9 +56,22 @@ PetscErrorCode NestedOptionsFromCommandLine(MPI_Comm comm, NestedOptions &o);
 // data of the coarse levels, until the finest level is solved: the multigrid of every level's solve uses
 // all transfers below it (hierarchy.h). For CR the multigrid goes from each CR level to P1 on the same
 // mesh and on through the P1 levels (CoarseSpaceTransfers, nested.cpp).
+//
+// Adaptive refinement (adapt.h) solves its first mesh by nested iteration and goes on with its multigrid:
+// with a NestedHandover, the transfers are built into its hierarchy and kept after the finest level, with
+// the P1 DOFs of every level and, for CR, the finest level's P1 space (the coarse space of the next
+// transfer), instead of being freed.
+struct NestedHandover {
+  Hierarchy            *hierarchy = nullptr; // filled level by level
+  std::vector<PetscInt> p1Dofs;              // global P1 DOFs of each level, coarse to fine
+  Space                 p1;                  // CR: the P1 space of the finest level (the receiver frees it)
+};
 class NestedIteration : public MeshStrategy {
 public:
-  NestedIteration(MeshLevels &levels, const Problem &problem, const PipelineOptions &fine, const NestedOptions &o) : levels_(levels), problem_(problem), fine_(fine), o_(o) {}
+  NestedIteration(MeshLevels &levels, const Problem &problem, const PipelineOptions &fine, const NestedOptions &o, NestedHandover *handover = nullptr) :
+    levels_(levels), problem_(problem), fine_(fine), o_(o), handover_(handover)
+  {
+  }
   PetscErrorCode Next(Step &step, bool &more) override;
   PetscErrorCode Carry(MeshSolution &cur, bool &carried) override;
   PetscErrorCode Solved(MeshSolution &&m) override;
@@ -76,7 +89,9 @@ private:
   std::vector<SolveResult::Level> summary_;
   AmgReuseStats                   amg_;        // of the coarse levels
   double                          prolongSeconds_ = 0;
-  Hierarchy                       hierarchy_;  // -vi_pc_type mg: the transfers so far
+  Hierarchy                       hierarchy_;  // -vi_pc_type mg: the transfers so far (unless handed over)
+  NestedHandover                 *handover_;
+  Hierarchy                      &H() { return handover_ ? *handover_->hierarchy : hierarchy_; }
   Space                           p1Prev_;     // CR with -vi_pc_type mg: the P1 space of the level before
   PetscErrorCode                  CoarseSpaceTransfers(PetscInt level, const Space &space);
 };

@@ -7,7 +7,8 @@
 //   ConvergenceStudy (study.h): every element on every study level without carry, each solution kept
 //     for its row, then a reference solve on a finer level; the table afterwards.
 //   AdaptiveRefinement (adapt.h): each solution's cells marked by the estimate and refined, the solution
-//     carried to the new mesh with its active set; the last one is kept.
+//     carried to the new mesh with its active set; the last one is kept. The first mesh is solved by a
+//     NestedIteration over its refinement levels, which hands its multigrid transfers over.
 #pragma once
 
 #include "signorini/pipeline.h"
