@@ -881,18 +881,30 @@ PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked,
   Children ch;
   Fine     f;
   DM       dm;
+  // -log_view: the phases, under the stage of the caller
+  static PetscLogEvent ev[5] = {0, 0, 0, 0, 0};
+  static const char   *evName[5] = {"BisectRead", "BisectClose", "BisectFine", "BisectPlex", "BisectSFLabels"};
   PetscFunctionBeginUser;
+  for (int i = 0; i < 5; ++i)
+    if (!ev[i]) PetscCall(PetscLogEventRegister(evName[i], DM_CLASSID, &ev[i]));
+  PetscCall(PetscLogEventBegin(ev[0], 0, 0, 0, 0));
   PetscCall(ReadCoarse(coarse, m));
   PetscCheck((PetscInt)marked.size() == m.NumCells(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "RefineMarkedBisection: %zu marks for %" PetscInt_FMT " cells", marked.size(), m.NumCells());
   PetscCall(GetSharing(coarse, m, sh));
+  PetscCall(PetscLogEventEnd(ev[0], 0, 0, 0, 0));
+  PetscCall(PetscLogEventBegin(ev[1], 0, 0, 0, 0));
   EdgeOrder::Lengths(m);
   const EdgeOrder   before(m);
   std::vector<char> mark;
   PetscCall(CloseMarks(PetscObjectComm((PetscObject)coarse), m, sh, before, marked, allEdges, mark));
+  PetscCall(PetscLogEventEnd(ev[1], 0, 0, 0, 0));
+  PetscCall(PetscLogEventBegin(ev[2], 0, 0, 0, 0));
   Cut(m, before, mark, ch);
   std::vector<PetscInt> gnum;
   PetscCall(NumberVertices(coarse, m, sh, mark, gnum));
   FinePoints(m, ch, gnum, f);
+  PetscCall(PetscLogEventEnd(ev[2], 0, 0, 0, 0));
+  PetscCall(PetscLogEventBegin(ev[3], 0, 0, 0, 0));
 
   PetscCall(DMCreate(PetscObjectComm((PetscObject)coarse), &dm));
   PetscCall(DMSetType(dm, DMPLEX));
@@ -901,6 +913,8 @@ PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked,
   std::vector<CellTypeStratum> types = {{m.dim == 2 ? DM_POLYTOPE_TRIANGLE : DM_POLYTOPE_TETRAHEDRON, 0, f.nc}, {DM_POLYTOPE_POINT, f.Vertex(0), f.Vertex(f.nv)}, {DM_POLYTOPE_SEGMENT, f.Edge(0), f.End()}};
   if (m.dim == 3) types.push_back({DM_POLYTOPE_TRIANGLE, f.Tri(0), f.Tri(f.nt)});
   PetscCall(SetCellTypeStrata(dm, types));
+  PetscCall(PetscLogEventEnd(ev[3], 0, 0, 0, 0));
+  PetscCall(PetscLogEventBegin(ev[4], 0, 0, 0, 0));
   PetscCall(SetPointSF(coarse, dm, m, sh, gnum, f));
   {
     std::vector<PetscReal> x(3 * f.nv);
@@ -913,6 +927,7 @@ PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked,
   PetscCall(PetscObjectSetName((PetscObject)dm, name));
   if (parent) *parent = f.parentOf;
   *fine = dm;
+  PetscCall(PetscLogEventEnd(ev[4], 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }
 
