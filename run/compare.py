@@ -2,8 +2,9 @@
 estimate eta, efficiency index, iterations, run time so far), one table, CSV and JSON, plots of error and
 estimate against DOFs and against run time, and the picture of the adapted mesh. Used by run/study and run/demo.
 
-Run time of a row: uniform, the level's own run (refinement of the mesh to that level, set-up, solve and
-estimate: the study's total_seconds); adaptive, the wall time of the run from the first mesh up to that
+Run time of a row: uniform, the run up to that level (refinement of the mesh to it, and the set-up, solve
+and estimate of every level of the element so far, each level started from the one before: the study's
+total_seconds, about what a run of that level alone costs); adaptive, the wall time of the run from the first mesh up to that
 step's estimate (every earlier step's set-up, solve, estimate, marking, refinement and transfer included:
 the summary's run_seconds), without the error computations.
 

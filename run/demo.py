@@ -54,7 +54,7 @@ def adaptive(study, options, out, ranks):
     for r in rows:
         print("%4s %4d%s %8d %12.4e %12s %6s %8.3f" % (r["element"], r["step"], "r" if r["reference_step"] else " ", r["dofs"], r["eta"],
                                                    "%.4e" % r["error"] if r["error"] is not None else "-", "%.2f" % r["efficiency"] if r["efficiency"] else "-", r["seconds"]))
-    print("(error: energy norm against the last step r, the adaptive reference; time: the run so far; uniform: energy error against P1 N = 512, time of the level's run)")
+    print("(error: energy norm against the last step r, the adaptive reference; time: the run so far; uniform: energy error against P1 N = 512, time of the run up to that level)")
     rows = compare.uniform_rows(study) + rows
     for line in compare.notes(rows) + compare.reach_lines(rows):
         print(line)

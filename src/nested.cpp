@@ -9,7 +9,7 @@ PetscErrorCode NestedOptionsFromCommandLine(MPI_Comm comm, NestedOptions &o)
 {
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Nested iteration", "signorini");
-  PetscCall(OptionBool(PetscOptionsObject, "-nested", "Solve on the coarser refinement levels first and start each level from the prolongated coarser solution", o.enabled));
+  PetscCall(OptionBool(PetscOptionsObject, "-nested", "Solve on the coarser refinement levels first and start each level from the prolongated coarser solution (so too the first mesh of -adapt_steps and the levels of -study_levels)", o.enabled));
   PetscCall(OptionInt(PetscOptionsObject, "-nested_levels", "Coarse levels solved before the finest one (-1: all refinement levels)", o.levels, -1, PETSC_MAX_INT));
   PetscCall(OptionEList(PetscOptionsObject, "-solve_to", "Where each level of the nested iteration stops: fmg (full multigrid: coarse levels to -solve_to_rtol of the error of their start, the finest to the full test), full (every level to the full test), discretization (every level, the finest included, and every adaptive step after the first, to -solve_to_fraction of its estimated discretization error)", {"fmg", "full", "discretization"}, o.solveTo));
   PetscCall(OptionReal(PetscOptionsObject, "-solve_to_rtol", "-solve_to fmg: a coarse level stops once its estimated algebraic error in the energy norm is this fraction of the error of its start (the prolongated guess)", o.rtol, 0, 1));
@@ -26,13 +26,6 @@ const char *SolveToName(PetscInt solveTo)
   return names[solveTo];
 }
 
-namespace {
-// The energy error of P1 and CR halves with h: the predicted discretization error of a level from the
-// estimate of the level before.
-constexpr PetscReal kErrorPerRefinement = 0.5;
-
-// uh = prolongation of the coarse level's solution with its active set (Solve projects it onto the fine
-// level's constraints). Part of the Solve stage; `seconds` is its wall time (max over ranks).
 PetscErrorCode ProlongateLevel(const MeshSolution &coarse, const Space &fine, const std::vector<PetscInt> &parent, const Problem &problem, Vec uh, double &seconds)
 {
   Vec            lowerH, lowerh;
@@ -52,6 +45,37 @@ PetscErrorCode ProlongateLevel(const MeshSolution &coarse, const Space &fine, co
   PetscCall(SecondsSince(PetscObjectComm((PetscObject)uh), t0, &seconds));
   PetscFunctionReturn(0);
 }
+
+PetscErrorCode AppendLevelTransfers(DM mesh, const Space &space, const Space *coarseP1, const std::vector<PetscInt> &parent, const Problem &problem, Hierarchy &h, Space *p1)
+{
+  Mat P;
+  PetscFunctionBeginUser;
+  if (space.element == Element::P1) {
+    if (coarseP1) {
+      PetscCall(ProlongationMatrix(*coarseP1, space, parent, &P));
+      h.P.push_back(P);
+    }
+    PetscFunctionReturn(0);
+  }
+  PetscCall(SpaceCreateP1Of(mesh, space, problem, *p1));
+  PetscCall(SpaceReleaseMesh(*p1));
+  if (!h.P.empty()) { // the transfer of the level before from its CR space to its P1 space
+    PetscCall(MatDestroy(&h.P.back()));
+    h.P.pop_back();
+  }
+  if (coarseP1) {
+    PetscCall(ProlongationMatrix(*coarseP1, *p1, parent, &P));
+    h.P.push_back(P);
+  }
+  PetscCall(P1ToCRMatrix(*p1, space, &P));
+  h.P.push_back(P);
+  PetscFunctionReturn(0);
+}
+
+namespace {
+// The energy error of P1 and CR halves with h: the predicted discretization error of a level from the
+// estimate of the level before.
+constexpr PetscReal kErrorPerRefinement = 0.5;
 
 SolveResult::Level LevelSummary(const Space &space, const SolveResult &r, double setupSeconds, double prolongSeconds)
 {
@@ -102,35 +126,17 @@ PetscErrorCode NestedIteration::Next(Step &step, bool &more)
   PetscFunctionReturn(0);
 }
 
-// CR with -vi_pc_type mg: below each CR level the multigrid continues with P1 on the same mesh (P1 is a
-// subspace of CR, so the transfer is exact: a face's value is the mean of its vertices') and then the P1
-// hierarchy of the coarser meshes, whose transfers are exact too. The Galerkin operator of the CR level on
-// P1 is the P1 stiffness matrix (seven entries a row in 2D) where the Galerkin products of the CR
-// prolongation grow denser on every level. Built while the level's mesh exists: the P1 space of the level
-// before is kept until then (the finest level's is not kept), the transfer from CR to P1 of the level
-// before is replaced.
+// CR with -vi_pc_type mg: the transfers of AppendLevelTransfers, built while the level's mesh exists: the
+// P1 space of the level before is kept until then (the finest level's is not kept).
 PetscErrorCode NestedIteration::CoarseSpaceTransfers(PetscInt l, const Space &space)
 {
   Space          p1;
-  Mat            P;
   PetscLogDouble t0;
   double         seconds;
   PetscFunctionBeginUser;
   if (fine_.solve.amgReuse.innerType != PCMG || space.element != Element::CR) PetscFunctionReturn(0);
   PetscCall(PetscTime(&t0));
-  PetscCall(SpaceCreateP1Of(levels_.dm[l], space, problem_, p1));
-  PetscCall(SpaceReleaseMesh(p1));
-  Hierarchy &h = H();
-  if (!h.P.empty()) { // the transfer of the level before from its CR space to its P1 space
-    PetscCall(MatDestroy(&h.P.back()));
-    h.P.pop_back();
-  }
-  if (l > 0) {
-    PetscCall(ProlongationMatrix(p1Prev_, p1, levels_.parent[l], &P));
-    h.P.push_back(P);
-  }
-  PetscCall(P1ToCRMatrix(p1, space, &P));
-  h.P.push_back(P);
+  PetscCall(AppendLevelTransfers(levels_.dm[l], space, l > 0 ? &p1Prev_ : nullptr, levels_.parent[l], problem_, H(), &p1));
   if (handover_) handover_->p1Dofs.push_back(p1.numGlobal);
   std::swap(p1Prev_, p1);
   PetscCall(SpaceDestroy(p1));
@@ -138,7 +144,7 @@ PetscErrorCode NestedIteration::CoarseSpaceTransfers(PetscInt l, const Space &sp
     handover_->p1 = p1Prev_;
     p1Prev_       = Space(); // a copied Space still holds the handles
   } else if (l + 1 == levels_.Count()) PetscCall(SpaceDestroy(p1Prev_)); // no level after the finest needs it
-  PetscCall(SecondsSince(PetscObjectComm((PetscObject)P), t0, &seconds));
+  PetscCall(SecondsSince(PetscObjectComm((PetscObject)space.dm), t0, &seconds));
   prolongSeconds_ += seconds;
   PetscFunctionReturn(0);
 }
@@ -152,13 +158,11 @@ PetscErrorCode NestedIteration::Carry(MeshSolution &cur, bool &carried)
   PetscCall(ProlongateLevel(prev_, cur.space, levels_.parent[level_], problem_, cur.u, seconds));
   prolongSeconds_ += seconds;
   if (fine_.solve.amgReuse.innerType == PCMG && cur.space.element == Element::P1) {
-    Mat            P;
     PetscLogDouble t0;
     PetscCall(PetscTime(&t0));
     PetscCall(StagePush(Stage::Solve));
-    PetscCall(ProlongationMatrix(prev_.space, cur.space, levels_.parent[level_], &P));
+    PetscCall(AppendLevelTransfers(nullptr, cur.space, &prev_.space, levels_.parent[level_], problem_, H(), nullptr));
     PetscCall(StagePop(Stage::Solve));
-    H().P.push_back(P);
     PetscCall(SecondsSince(PetscObjectComm((PetscObject)cur.u), t0, &seconds));
     prolongSeconds_ += seconds;
   }

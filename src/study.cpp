@@ -3,7 +3,9 @@
 #include "signorini/output.h"
 #include "signorini/pipeline.h"
 #include "signorini/report.h"
+#include "signorini/stages.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -65,6 +67,8 @@ static PetscErrorCode PrintTable(MPI_Comm comm, const std::vector<StudyRow> &row
     o << Format("%-4s %6d %10.4g %9d %9d %12.5e %6s %12.5e %6s %12.5e %6s %12s %6s %6d %6d %9.3f %9.3f %9.1f\n", r.element.c_str(), (int)r.N, (double)r.h, (int)r.cells, (int)r.dofs, has ? (double)e.l2 : NAN, rates[0].c_str(), has ? (double)e.h1semi : NAN, rates[1].c_str(),
                 has ? (double)e.h1 : NAN, rates[2].c_str(), eta.c_str(), index.c_str(), (int)r.solve.newtonIts, (int)r.solve.kspIts, r.solveSeconds, r.totalSeconds, r.peakRSS / 1048576.0);
   }
+  const bool carried = std::any_of(rows.begin(), rows.end(), [](const StudyRow &r) { return r.carried; });
+  o << (carried ? "(each level from the one before; total: the run up to the level, mesh, set-up, solve and estimate of its element's levels so far)\n" : "(each level from u_D; total: mesh, set-up, solve and estimate of the level)\n");
   PetscCall(PetscPrintf(comm, "%s", o.str().c_str()));
   PetscFunctionReturn(0);
 }
@@ -84,7 +88,7 @@ static PetscErrorCode WriteJSON(MPI_Comm comm, const std::string &file, const st
     const StudyRow &r = rows[i];
     j << "    {\"element\": \"" << r.element << "\", \"level\": " << r.level << ", \"N\": " << r.N << Format(", \"h\": %.17g", (double)r.h) << ", \"cells\": " << r.cells << ", \"dofs\": " << r.dofs;
     j << ", \"newton_iterations\": " << r.solve.newtonIts << ", \"ksp_iterations\": " << r.solve.kspIts << ", \"converged_reason\": \"" << r.solve.reason << "\"";
-    j << ", \"active\": " << r.solve.active << Format(", \"energy\": %.17g", (double)r.solve.energy);
+    j << ", \"carried\": " << (r.carried ? "true" : "false") << ", \"active\": " << r.solve.active << Format(", \"energy\": %.17g", (double)r.solve.energy);
     if (r.hasExact) j << ", \"error_exact\": " << JsonErrors(r.exact);
     if (r.hasReference) j << ", \"error_reference\": " << JsonErrors(r.reference);
     if (r.estimate.computed) j << ", \"estimate\": " << EstimateJSON(r.estimate, r.hasReference ? &r.reference : r.hasExact ? &r.exact : nullptr);
@@ -115,7 +119,7 @@ PetscErrorCode ConvergenceStudy::Refine()
   PetscFunctionReturn(0);
 }
 
-// Each solve with the default solver settings and without the KKT warning; the finest level of each
+// Each solve with the user's solver settings and without the KKT warning; the finest level of each
 // element keeps its mesh when its profile is written (the HDF5 output needs it).
 PetscErrorCode ConvergenceStudy::Next(Step &step, bool &more)
 {
@@ -130,10 +134,44 @@ PetscErrorCode ConvergenceStudy::Next(Step &step, bool &more)
   step.mesh             = levels_[level];
   step.options.element  = reference ? o_.referenceElement : o_.elements[step_ / o_.levels];
   step.options.assembly = assembly_;
+  step.options.solve    = solve_;
+  step.options.solve.compareLinear = false;
+  if (!reference && Multigrid() && o_.carry) step.options.solve.amgReuse.hierarchy = &hierarchy_; // complete once Carry ran
   step.options.kktHint  = false;
   step.options.estimate.enabled = estimate_.enabled && !reference;
   step.options.keepMesh = !reference && level == o_.levels - 1 && !o_.profiles.empty();
   PetscCall(PetscTime(&stepStart_));
+  PetscFunctionReturn(0);
+}
+
+// A level after the first of its element starts from the one before (its solution is the last kept);
+// every level of a CR element puts its transfers on the multigrid, as nested iteration does.
+PetscErrorCode ConvergenceStudy::Carry(MeshSolution &cur, bool &carried)
+{
+  const PetscInt l = step_ % o_.levels;
+  PetscLogDouble t0;
+  double         seconds;
+  Space          p1;
+  PetscFunctionBeginUser;
+  carrySeconds_ = 0;
+  carried       = step_ < NumRows() && l > 0 && o_.carry;
+  if (l == 0 || step_ >= NumRows()) { // a new element (its own transfers), or the reference (none)
+    PetscCall(hierarchy_.Destroy());
+    PetscCall(SpaceDestroy(p1Prev_));
+  }
+  if (step_ >= NumRows()) PetscFunctionReturn(0);
+  const MeshSolution *before = carried ? &solved_.back() : nullptr;
+  if (carried) PetscCall(ProlongateLevel(*before, cur.space, parent_[l], problem_, cur.u, carrySeconds_));
+  if (!Multigrid() || !o_.carry) PetscFunctionReturn(0);
+  PetscCall(PetscTime(&t0));
+  PetscCall(StagePush(Stage::Solve));
+  const Space *coarseP1 = cur.space.element == Element::CR ? (l > 0 ? &p1Prev_ : nullptr) : (before ? &before->space : nullptr);
+  PetscCall(AppendLevelTransfers(levels_[l], cur.space, coarseP1, parent_[l], problem_, hierarchy_, &p1));
+  PetscCall(StagePop(Stage::Solve));
+  PetscCall(SpaceDestroy(p1Prev_));
+  p1Prev_ = p1; // (none for P1)
+  PetscCall(SecondsSince(PetscObjectComm((PetscObject)cur.u), t0, &seconds));
+  carrySeconds_ += seconds;
   PetscFunctionReturn(0);
 }
 
@@ -163,9 +201,10 @@ PetscErrorCode ConvergenceStudy::Row(MeshSolution &&m)
   }
   PetscCall(SystemDestroy(m.sys)); // the rows and the reference need the space, u and sys.kappa only (kept)
   r.solve        = m.result;
+  r.carried      = l > 0 && o_.carry;
   r.estimate     = std::move(m.estimate);
   std::vector<PetscReal>().swap(r.estimate.cellEta2);
-  r.solveSeconds = m.result.solveSeconds;
+  r.solveSeconds = m.result.solveSeconds + carrySeconds_; // the transfers are the preconditioner's data
   r.element      = ElementName(e);
   r.level        = l;
   r.N            = N0_ << l;
@@ -174,7 +213,9 @@ PetscErrorCode ConvergenceStudy::Row(MeshSolution &&m)
   PetscInt local = m.space.NumCells();
   PetscCallMPI(MPI_Allreduce(&local, &r.cells, 1, MPIU_INT, MPI_SUM, comm));
   r.dofs         = m.space.numGlobal;
-  r.totalSeconds = meshSeconds_[l] + (t1 - stepStart_);
+  if (l == 0) elementSeconds_ = 0;
+  elementSeconds_ += t1 - stepStart_;
+  r.totalSeconds = meshSeconds_[l] + elementSeconds_;
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &r.solveSeconds, 1, MPI_DOUBLE, MPI_MAX, comm));
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &r.totalSeconds, 1, MPI_DOUBLE, MPI_MAX, comm));
   double rssSum;
@@ -223,6 +264,8 @@ PetscErrorCode ConvergenceStudy::Finish()
   if (!o_.file.empty()) PetscCall(WriteJSON(comm, o_.file, problem_.scene, o_, N0_ << Finest(), refDofs_, rows_));
   for (MeshSolution &m : solved_) PetscCall(m.Destroy());
   for (DM &dm : levels_) PetscCall(DMDestroy(&dm));
+  PetscCall(hierarchy_.Destroy());
+  PetscCall(SpaceDestroy(p1Prev_));
   PetscFunctionReturn(0);
 }
 

@@ -7,6 +7,7 @@
   its own refinement gives 0; the same figures on 1 and 2 ranks;
 - on the manufactured scene the errors against a fine reference agree with those against the exact solution
   to within the reference's own error (triangle inequality);
+- each level starts from the one before, with the same errors and estimates as levels solved from u_D;
 - run/study writes the CSV, JSON and PNG files and the rates are in range."""
 import json
 import math
@@ -78,6 +79,23 @@ for r in s["rows"]:
         gap = abs(r["error_reference"][norm] - r["error_exact"][norm])
         c.check(gap <= ref["error"][norm] * (1 + 1e-9), "manufactured %s N=%d %s: |e_ref - e_exact| = %.2e <= reference error %.2e"
                 % (r["element"], r["N"], norm, gap, ref["error"][norm]))
+
+# Each level of an element starts from the one before (prolongation with its active set, the multigrid over
+# the levels so far), as a run of that level would: the same rows as levels solved each from u_D
+# (-nested 0, an independent solve of the same discrete problems), on 1 and 2 ranks; a row's total time is
+# the run up to its level (cumulative within an element).
+base = scene("manufactured-2d") + ["-box_faces", "4", "-study_levels", "4", "-reference_refine", "1"] + tight + ["-snes_rtol", "1e-13"]
+alone = study(base + ["-nested", "0"])
+for ranks in [1, 2]:
+    s = study(base, ranks)
+    c.check([r["carried"] for r in s["rows"]] == [r["level"] > 0 for r in s["rows"]] and not any(r["carried"] for r in alone["rows"]),
+            "study, %d rank(s): every level after an element's first starts from the one before; with -nested 0 none" % ranks)
+    worst = max(abs(a[k][n] - b[k][n]) / a[k][n] for a, b in zip(alone["rows"], s["rows"]) for k in ["error_exact", "error_reference"] for n in ["l2", "h1_semi"])
+    worst = max([worst] + [abs(a["estimate"]["eta"] - b["estimate"]["eta"]) / a["estimate"]["eta"] for a, b in zip(alone["rows"], s["rows"])])
+    c.check(worst <= 1e-8, "study, %d rank(s): errors and eta as with every level from u_D (largest relative difference %.1e <= 1e-8)" % (ranks, worst))
+    for el in ["p1", "cr"]:
+        t = [r["total_seconds"] for r in s["rows"] if r["element"] == el]
+        c.check(all(a <= b for a, b in zip(t, t[1:])), "study %s, %d rank(s): total time cumulative over the levels (%s)" % (el, ranks, ["%.3f" % x for x in t]))
 
 # run/study: files and rates.
 with tempfile.TemporaryDirectory() as tmp:

@@ -41,7 +41,21 @@ struct NestedOptions {
 const char *SolveToName(PetscInt solveTo);
 PetscErrorCode NestedOptionsFromCommandLine(MPI_Comm comm, NestedOptions &o);
 
-// The prolongation of each level's solution with its active set to the next: transfer.h.
+// The prolongation of each level's solution with its active set to the next (transfer.h): uh = that of
+// the coarse level's solution (Solve projects it onto the fine level's constraints). Part of the Solve
+// stage; `seconds` is its wall time (max over ranks).
+PetscErrorCode ProlongateLevel(const MeshSolution &coarse, const Space &fine, const std::vector<PetscInt> &parent, const Problem &problem, Vec uh, double &seconds);
+
+// The multigrid's transfers to a new level (-vi_pc_type mg), appended to h: a P1 level's from coarseP1,
+// the space of the level before (none on the first level). Below a CR level the multigrid goes on with
+// P1 on the same mesh (P1 is a subspace of CR, so the transfer is exact: a face's value is the mean of
+// its vertices') and then the P1 levels of the coarser meshes, whose transfers are exact too; the Galerkin
+// operator of the CR level on P1 is the P1 stiffness matrix (seven entries a row in 2D) where the Galerkin
+// products of the CR prolongation grow denser on every level. So a CR level builds the P1 space of its
+// mesh into *p1 (which the caller keeps as the next level's coarseP1 and frees), replaces the P1-to-CR
+// transfer on top of h by the P1 transfer from coarseP1 (the level before's P1 space), and puts its own
+// P1-to-CR transfer on top. parent: the parent map of the mesh's cells (transfer.h). Collective.
+PetscErrorCode AppendLevelTransfers(DM mesh, const Space &space, const Space *coarseP1, const std::vector<PetscInt> &parent, const Problem &problem, Hierarchy &h, Space *p1);
 
 // Nested iteration as a strategy of the loop over meshes (strategy.h): the levels levels.dm[0 ..
 // Count()-1], coarse to fine, each from the prolongation of the one before (the coarsest from u_D). The

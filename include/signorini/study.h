@@ -11,6 +11,7 @@
 #include "signorini/error.h"
 #include "signorini/estimate.h"
 #include "signorini/mesh.h"
+#include "signorini/nested.h"
 #include "signorini/strategy.h"
 
 namespace signorini {
@@ -22,6 +23,7 @@ struct StudyOptions {
   std::vector<Element> elements = {Element::P1, Element::CR};
   std::string          file;     // JSON output
   std::string          profiles; // prefix of the finest level's solution (HDF5) and contact profile (CSV)
+  bool                 carry = true; // each level from the one before (-nested 0: every level from u_D)
 };
 
 // The problem says which profile files are written (contact profiles only with a contact part).
@@ -32,6 +34,7 @@ struct StudyRow {
   PetscInt    level = 0, N = 0, cells = 0, dofs = 0;
   PetscReal   h = 0;
   SolveResult solve;
+  bool        carried = false; // started from the level before (else from u_D)
   bool        hasExact = false, hasReference = false;
   ErrorNorms  exact, reference;
   Estimate    estimate; // without the cell indicators
@@ -39,16 +42,22 @@ struct StudyRow {
 };
 
 // The study as a strategy of the loop over meshes (strategy.h): every element of o.elements on every
-// study level (coarse solves first, so that each row's peak memory is not the reference's), nothing
-// carried, each solution kept for its row; then, with o.referenceRefine, the reference on the finest
-// level, against which every kept solution is measured. `base` is level 0 (the distributed, possibly
+// study level (coarse solves first, so that each row's peak memory is not the reference's), each solution
+// kept for its row; then, with o.referenceRefine, the reference on the finest level, against which every
+// kept solution is measured. The levels of one element go as a run of the finest would (nested.h): each
+// level from the prolongation of the one before with its active set, preconditioned by the multigrid over
+// the levels so far (-vi_pc_type mg), but each solved to the full test, as its row reports its error; a
+// row's total time is the run up to its level (the mesh refinements, and the set-up, solve and estimate
+// of every level of its element so far), what a run of that level alone costs up to the coarse levels'
+// early stops. The reference is solved from u_D on its own. `base` is level 0 (the distributed, possibly
 // refined, mesh of MeshCreate; the study takes its own reference), `N0` its cells per side (box meshes;
 // 0 for files). The levels are refined at the first Next.
 class ConvergenceStudy : public MeshStrategy {
 public:
-  ConvergenceStudy(DM base, PetscInt N0, PetscReal h0, const Problem &problem, const AssemblyOptions &assembly, const EstimateOptions &estimate, PetscInt errorDegree, const StudyOptions &o)
-    : base_(base), N0_(N0), h0_(h0), problem_(problem), assembly_(assembly), estimate_(estimate), errorDegree_(errorDegree), o_(o) {}
+  ConvergenceStudy(DM base, PetscInt N0, PetscReal h0, const Problem &problem, const AssemblyOptions &assembly, const SolveOptions &solve, const EstimateOptions &estimate, PetscInt errorDegree, const StudyOptions &o)
+    : base_(base), N0_(N0), h0_(h0), problem_(problem), assembly_(assembly), solve_(solve), estimate_(estimate), errorDegree_(errorDegree), o_(o) {}
   PetscErrorCode Next(Step &step, bool &more) override;
+  PetscErrorCode Carry(MeshSolution &cur, bool &carried) override;
   PetscErrorCode Solved(MeshSolution &&m) override;
   // After the loop: prints the table, writes the JSON if asked, and frees the solutions and the levels.
   PetscErrorCode Finish();
@@ -65,6 +74,7 @@ private:
   PetscReal                          h0_;
   const Problem                     &problem_;
   AssemblyOptions                    assembly_;
+  SolveOptions                       solve_;    // the user's, without the linear comparison
   EstimateOptions                    estimate_; // every row's solution; not the reference's
   PetscInt                           errorDegree_;
   StudyOptions                       o_;
@@ -76,6 +86,11 @@ private:
   std::vector<StudyRow>              rows_;
   std::vector<MeshSolution>          solved_; // one per row
   PetscInt                           refDofs_ = 0;
+  double                             elementSeconds_ = 0; // the levels of the element under way so far
+  double                             carrySeconds_   = 0; // of the row under way: prolongation and transfers
+  Hierarchy                          hierarchy_;  // -vi_pc_type mg: the transfers of the element under way
+  Space                              p1Prev_;     // CR: the P1 space of the level before (AppendLevelTransfers)
+  bool                               Multigrid() const { return solve_.amgReuse.innerType == PCMG && problem_.HasContact(); }
 };
 
 } // namespace signorini
