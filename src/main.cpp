@@ -125,7 +125,7 @@ static PetscErrorCode Run(MPI_Comm comm)
     PetscReal h0;
     if (N0 > 0) h0 = (s.mesh.upper[0] - s.mesh.lower[0]) / N0;
     else PetscCall(MeshSize(mesh, &h0));
-    s.study.carry = s.nested.enabled;
+    s.study.nested = s.nested;
     ConvergenceStudy study(mesh, N0, h0, s.problem, s.assembly, s.solve, s.estimate, s.errorDegree, s.study);
     PetscCall(SolveMeshes(s.problem, study));
     PetscCall(study.Finish());

@@ -75,14 +75,14 @@ static PetscErrorCode PrintTable(MPI_Comm comm, const std::vector<StudyRow> &row
 
 static std::string JsonErrors(const ErrorNorms &e) { return Format("{\"l2\": %.17g, \"h1_semi\": %.17g, \"h1\": %.17g, \"energy\": %.17g}", (double)e.l2, (double)e.h1semi, (double)e.h1, (double)e.energy); }
 
-static PetscErrorCode WriteJSON(MPI_Comm comm, const std::string &file, const std::string &scene, const StudyOptions &o, PetscInt refN, PetscInt refDofs, const std::vector<StudyRow> &rows)
+static PetscErrorCode WriteJSON(MPI_Comm comm, const std::string &file, const std::string &scene, const StudyOptions &o, PetscInt refN, PetscInt refDofs, PetscInt refNestedLevels, const std::vector<StudyRow> &rows)
 {
   std::ostringstream j;
   PetscMPIInt        size;
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_size(comm, &size));
   j << "{\n  \"scene\": \"" << scene << "\",\n  \"ranks\": " << size << ",\n";
-  if (o.referenceRefine > 0) j << "  \"reference\": {\"element\": \"" << ElementName(o.referenceElement) << "\", \"N\": " << refN << ", \"dofs\": " << refDofs << "},\n";
+  if (o.referenceRefine > 0) j << "  \"reference\": {\"element\": \"" << ElementName(o.referenceElement) << "\", \"N\": " << refN << ", \"dofs\": " << refDofs << ", \"nested_levels\": " << refNestedLevels << "},\n";
   j << "  \"rows\": [\n";
   for (size_t i = 0; i < rows.size(); ++i) {
     const StudyRow &r = rows[i];
@@ -124,23 +124,65 @@ PetscErrorCode ConvergenceStudy::Refine()
 PetscErrorCode ConvergenceStudy::Next(Step &step, bool &more)
 {
   PetscFunctionBeginUser;
+  if (refNested_) { // a level of the reference's nested iteration
+    PetscCall(refNested_->Next(step, more));
+    refFinest_ = step.mesh == refLevels_.dm.back();
+    PetscFunctionReturn(0);
+  }
   if (step_ < 0) PetscCall(Refine());
   ++step_;
   more = step_ < NumRows() || (step_ == NumRows() && o_.referenceRefine > 0);
   if (!more) PetscFunctionReturn(0);
   const bool reference = step_ == NumRows();
+  if (reference && Carrying()) {
+    PetscCall(hierarchy_.Destroy()); // the rows' transfers
+    PetscCall(SpaceDestroy(p1Prev_));
+    refLevels_.dm.assign(levels_.begin(), levels_.end());
+    for (DM dm : refLevels_.dm) PetscCall(PetscObjectReference((PetscObject)dm));
+    refLevels_.parent = parent_; // nested iteration frees each once used; the rows' errors need them after
+    if (o_.nested.levels >= 0 && refLevels_.Count() > o_.nested.levels + 1) { // -nested_levels: the coarse levels solved first
+      const PetscInt drop = refLevels_.Count() - (o_.nested.levels + 1);
+      for (PetscInt l = 0; l < drop; ++l) PetscCall(DMDestroy(&refLevels_.dm[l]));
+      refLevels_.dm.erase(refLevels_.dm.begin(), refLevels_.dm.begin() + drop);
+      refLevels_.parent.erase(refLevels_.parent.begin(), refLevels_.parent.begin() + drop);
+    }
+    PipelineOptions fine;
+    PetscCall(ReferenceOptions(fine));
+    refNested_ = std::make_unique<NestedIteration>(refLevels_, problem_, fine, o_.nested);
+    PetscCall(refNested_->Next(step, more));
+    refFinest_ = step.mesh == refLevels_.dm.back();
+    PetscFunctionReturn(0);
+  }
   const PetscInt level = reference ? Finest() : step_ % o_.levels;
   step                  = Step();
   step.mesh             = levels_[level];
-  step.options.element  = reference ? o_.referenceElement : o_.elements[step_ / o_.levels];
+  if (reference) {
+    PetscCall(ReferenceOptions(step.options));
+    PetscFunctionReturn(0);
+  }
+  step.options.element  = o_.elements[step_ / o_.levels];
   step.options.assembly = assembly_;
   step.options.solve    = solve_;
   step.options.solve.compareLinear = false;
-  if (!reference && Multigrid() && o_.carry) step.options.solve.amgReuse.hierarchy = &hierarchy_; // complete once Carry ran
+  if (Multigrid()) step.options.solve.amgReuse.hierarchy = &hierarchy_; // complete once Carry ran
   step.options.kktHint  = false;
-  step.options.estimate.enabled = estimate_.enabled && !reference;
-  step.options.keepMesh = !reference && level == o_.levels - 1 && !o_.profiles.empty();
+  step.options.estimate.enabled = estimate_.enabled;
+  step.options.keepMesh = level == o_.levels - 1 && !o_.profiles.empty();
   PetscCall(PetscTime(&stepStart_));
+  PetscFunctionReturn(0);
+}
+
+// The reference's solve: the user's solver settings, no estimate, no KKT warning, no linear comparison.
+PetscErrorCode ConvergenceStudy::ReferenceOptions(PipelineOptions &o) const
+{
+  PetscFunctionBeginUser;
+  o                     = PipelineOptions();
+  o.element             = o_.referenceElement;
+  o.assembly            = assembly_;
+  o.solve               = solve_;
+  o.solve.compareLinear = false;
+  o.kktHint             = false;
+  o.estimate.enabled    = false;
   PetscFunctionReturn(0);
 }
 
@@ -153,8 +195,12 @@ PetscErrorCode ConvergenceStudy::Carry(MeshSolution &cur, bool &carried)
   double         seconds;
   Space          p1;
   PetscFunctionBeginUser;
+  if (refNested_) {
+    PetscCall(refNested_->Carry(cur, carried));
+    PetscFunctionReturn(0);
+  }
   carrySeconds_ = 0;
-  carried       = step_ < NumRows() && l > 0 && o_.carry;
+  carried       = step_ < NumRows() && l > 0 && Carrying();
   if (l == 0 || step_ >= NumRows()) { // a new element (its own transfers), or the reference (none)
     PetscCall(hierarchy_.Destroy());
     PetscCall(SpaceDestroy(p1Prev_));
@@ -162,7 +208,7 @@ PetscErrorCode ConvergenceStudy::Carry(MeshSolution &cur, bool &carried)
   if (step_ >= NumRows()) PetscFunctionReturn(0);
   const MeshSolution *before = carried ? &solved_.back() : nullptr;
   if (carried) PetscCall(ProlongateLevel(*before, cur.space, parent_[l], problem_, cur.u, carrySeconds_));
-  if (!Multigrid() || !o_.carry) PetscFunctionReturn(0);
+  if (!Multigrid()) PetscFunctionReturn(0);
   PetscCall(PetscTime(&t0));
   PetscCall(StagePush(Stage::Solve));
   const Space *coarseP1 = cur.space.element == Element::CR ? (l > 0 ? &p1Prev_ : nullptr) : (before ? &before->space : nullptr);
@@ -178,7 +224,15 @@ PetscErrorCode ConvergenceStudy::Carry(MeshSolution &cur, bool &carried)
 PetscErrorCode ConvergenceStudy::Solved(MeshSolution &&m)
 {
   PetscFunctionBeginUser;
-  if (step_ < NumRows()) PetscCall(Row(std::move(m)));
+  if (refNested_) {
+    PetscCall(refNested_->Solved(std::move(m)));
+    if (!refFinest_) PetscFunctionReturn(0);
+    MeshSolution ref    = std::move(refNested_->finest);
+    refNested_->finest = MeshSolution(); // a moved MeshSolution still holds the handles
+    refNested_.reset();
+    PetscCall(MeshLevelsDestroy(refLevels_));
+    PetscCall(Reference(ref));
+  } else if (step_ < NumRows()) PetscCall(Row(std::move(m)));
   else PetscCall(Reference(m));
   PetscFunctionReturn(0);
 }
@@ -201,7 +255,7 @@ PetscErrorCode ConvergenceStudy::Row(MeshSolution &&m)
   }
   PetscCall(SystemDestroy(m.sys)); // the rows and the reference need the space, u and sys.kappa only (kept)
   r.solve        = m.result;
-  r.carried      = l > 0 && o_.carry;
+  r.carried      = l > 0 && Carrying();
   r.estimate     = std::move(m.estimate);
   std::vector<PetscReal>().swap(r.estimate.cellEta2);
   r.solveSeconds = m.result.solveSeconds + carrySeconds_; // the transfers are the preconditioner's data
@@ -239,7 +293,9 @@ PetscErrorCode ConvergenceStudy::Reference(MeshSolution &r)
   PetscFunctionBeginUser;
   PetscCall(SystemDestroy(r.sys));
   refDofs_ = ref.numGlobal;
-  PetscCall(PetscPrintf(comm, "reference: %s on level %d (N = %d), %d DOFs, %d Newton / %d KSP iterations, %.2f s\n", ElementName(o_.referenceElement), (int)finest, (int)(N0_ << finest), (int)refDofs_, (int)rr.newtonIts, (int)rr.kspIts, rr.solveSeconds));
+  refNestedLevels_ = (PetscInt)rr.levels.size();
+  const std::string how = rr.levels.empty() ? "" : Format(" (nested iteration over %d levels; the finest level's iterations)", (int)rr.levels.size());
+  PetscCall(PetscPrintf(comm, "reference: %s on level %d (N = %d), %d DOFs, %d Newton / %d KSP iterations, %.2f s%s\n", ElementName(o_.referenceElement), (int)finest, (int)(N0_ << finest), (int)refDofs_, (int)rr.newtonIts, (int)rr.kspIts, rr.solveSeconds, how.c_str()));
   // parent maps from the reference level down to each study level, composed once per level
   std::vector<PetscInt> map(ref.NumCells());
   for (PetscInt c = 0; c < ref.NumCells(); ++c) map[c] = c;
@@ -261,11 +317,12 @@ PetscErrorCode ConvergenceStudy::Finish()
   MPI_Comm comm = PetscObjectComm((PetscObject)base_);
   PetscFunctionBeginUser;
   PetscCall(PrintTable(comm, rows_));
-  if (!o_.file.empty()) PetscCall(WriteJSON(comm, o_.file, problem_.scene, o_, N0_ << Finest(), refDofs_, rows_));
+  if (!o_.file.empty()) PetscCall(WriteJSON(comm, o_.file, problem_.scene, o_, N0_ << Finest(), refDofs_, refNestedLevels_, rows_));
   for (MeshSolution &m : solved_) PetscCall(m.Destroy());
   for (DM &dm : levels_) PetscCall(DMDestroy(&dm));
   PetscCall(hierarchy_.Destroy());
   PetscCall(SpaceDestroy(p1Prev_));
+  PetscCall(MeshLevelsDestroy(refLevels_));
   PetscFunctionReturn(0);
 }
 

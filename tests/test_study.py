@@ -82,14 +82,18 @@ for r in s["rows"]:
 
 # Each level of an element starts from the one before (prolongation with its active set, the multigrid over
 # the levels so far), as a run of that level would: the same rows as levels solved each from u_D
-# (-nested 0, an independent solve of the same discrete problems), on 1 and 2 ranks; a row's total time is
-# the run up to its level (cumulative within an element).
+# (-nested 0, an independent solve of the same discrete problems; the reference from u_D too), on 1 and 2
+# ranks; a row's total time is the run up to its level (cumulative within an element).
 base = scene("manufactured-2d") + ["-box_faces", "4", "-study_levels", "4", "-reference_refine", "1"] + tight + ["-snes_rtol", "1e-13"]
 alone = study(base + ["-nested", "0"])
 for ranks in [1, 2]:
     s = study(base, ranks)
     c.check([r["carried"] for r in s["rows"]] == [r["level"] > 0 for r in s["rows"]] and not any(r["carried"] for r in alone["rows"]),
             "study, %d rank(s): every level after an element's first starts from the one before; with -nested 0 none" % ranks)
+    # the reference is solved as a run of its level is: by nested iteration over the study's levels and its own
+    c.check(s["reference"]["nested_levels"] == 4 + 1 and alone["reference"]["nested_levels"] == 0,
+            "study, %d rank(s): reference by nested iteration over %d levels (5), with -nested 0 from u_D (%d levels)"
+            % (ranks, s["reference"]["nested_levels"], alone["reference"]["nested_levels"]))
     worst = max(abs(a[k][n] - b[k][n]) / a[k][n] for a, b in zip(alone["rows"], s["rows"]) for k in ["error_exact", "error_reference"] for n in ["l2", "h1_semi"])
     worst = max([worst] + [abs(a["estimate"]["eta"] - b["estimate"]["eta"]) / a["estimate"]["eta"] for a, b in zip(alone["rows"], s["rows"])])
     c.check(worst <= 1e-8, "study, %d rank(s): errors and eta as with every level from u_D (largest relative difference %.1e <= 1e-8)" % (ranks, worst))

@@ -14,6 +14,8 @@
 #include "signorini/nested.h"
 #include "signorini/strategy.h"
 
+#include <memory>
+
 namespace signorini {
 
 struct StudyOptions {
@@ -23,7 +25,7 @@ struct StudyOptions {
   std::vector<Element> elements = {Element::P1, Element::CR};
   std::string          file;     // JSON output
   std::string          profiles; // prefix of the finest level's solution (HDF5) and contact profile (CSV)
-  bool                 carry = true; // each level from the one before (-nested 0: every level from u_D)
+  NestedOptions        nested; // enabled: each level from the one before, the reference by nested iteration (-nested 0: from u_D)
 };
 
 // The problem says which profile files are written (contact profiles only with a contact part).
@@ -49,7 +51,9 @@ struct StudyRow {
 // the levels so far (-vi_pc_type mg), but each solved to the full test, as its row reports its error; a
 // row's total time is the run up to its level (the mesh refinements, and the set-up, solve and estimate
 // of every level of its element so far), what a run of that level alone costs up to the coarse levels'
-// early stops. The reference is solved from u_D on its own. `base` is level 0 (the distributed, possibly
+// early stops. The reference is solved as a run of its level is, by nested iteration over all the levels
+// (nested.h, with its -solve_to). A scene without a contact part is a linear solve on every level, and
+// -nested 0 solves every level and the reference from u_D. `base` is level 0 (the distributed, possibly
 // refined, mesh of MeshCreate; the study takes its own reference), `N0` its cells per side (box meshes;
 // 0 for files). The levels are refined at the first Next.
 class ConvergenceStudy : public MeshStrategy {
@@ -86,11 +90,18 @@ private:
   std::vector<StudyRow>              rows_;
   std::vector<MeshSolution>          solved_; // one per row
   PetscInt                           refDofs_ = 0;
+  PetscInt                           refNestedLevels_ = 0; // levels of the reference's nested iteration (0: from u_D)
   double                             elementSeconds_ = 0; // the levels of the element under way so far
   double                             carrySeconds_   = 0; // of the row under way: prolongation and transfers
   Hierarchy                          hierarchy_;  // -vi_pc_type mg: the transfers of the element under way
   Space                              p1Prev_;     // CR: the P1 space of the level before (AppendLevelTransfers)
-  bool                               Multigrid() const { return solve_.amgReuse.innerType == PCMG && problem_.HasContact(); }
+  bool                               Carrying() const { return o_.nested.enabled && problem_.HasContact(); }
+  bool                               Multigrid() const { return solve_.amgReuse.innerType == PCMG && Carrying(); }
+  // the reference by nested iteration: its levels (references to levels_, copies of parent_)
+  MeshLevels                         refLevels_;
+  std::unique_ptr<NestedIteration>   refNested_;
+  bool                               refFinest_ = false; // the step under way is the reference level
+  PetscErrorCode                     ReferenceOptions(PipelineOptions &o) const;
 };
 
 } // namespace signorini
