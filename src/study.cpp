@@ -294,7 +294,7 @@ PetscErrorCode ConvergenceStudy::Reference(MeshSolution &r)
   PetscCall(SystemDestroy(r.sys));
   refDofs_ = ref.numGlobal;
   refNestedLevels_ = (PetscInt)rr.levels.size();
-  const std::string how = rr.levels.empty() ? "" : Format(" (nested iteration over %d levels; the finest level's iterations)", (int)rr.levels.size());
+  const std::string how = rr.levels.size() < 2 ? "" : Format(" (nested iteration over %d levels; the finest level's iterations)", (int)rr.levels.size());
   PetscCall(PetscPrintf(comm, "reference: %s on level %d (N = %d), %d DOFs, %d Newton / %d KSP iterations, %.2f s%s\n", ElementName(o_.referenceElement), (int)finest, (int)(N0_ << finest), (int)refDofs_, (int)rr.newtonIts, (int)rr.kspIts, rr.solveSeconds, how.c_str()));
   // parent maps from the reference level down to each study level, composed once per level
   std::vector<PetscInt> map(ref.NumCells());
