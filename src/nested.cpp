@@ -9,7 +9,7 @@ PetscErrorCode NestedOptionsFromCommandLine(MPI_Comm comm, NestedOptions &o)
 {
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Nested iteration", "signorini");
-  PetscCall(OptionBool(PetscOptionsObject, "-nested", "Solve on the coarser refinement levels first and start each level from the prolongated coarser solution (so too the first mesh of -adapt_steps and the levels of -study_levels)", o.enabled));
+  PetscCall(OptionBool(PetscOptionsObject, "-nested", "Solve on the coarser refinement levels first and start each level from the prolongated coarser solution (so too the first mesh of -adapt_steps, and the levels and the reference of -study_levels)", o.enabled));
   PetscCall(OptionInt(PetscOptionsObject, "-nested_levels", "Coarse levels solved before the finest one (-1: all refinement levels)", o.levels, -1, PETSC_MAX_INT));
   PetscCall(OptionEList(PetscOptionsObject, "-solve_to", "Where each level of the nested iteration stops: fmg (full multigrid: coarse levels to -solve_to_rtol of the error of their start, the finest to the full test), full (every level to the full test), discretization (every level, the finest included, and every adaptive step after the first, to -solve_to_fraction of its estimated discretization error)", {"fmg", "full", "discretization"}, o.solveTo));
   PetscCall(OptionReal(PetscOptionsObject, "-solve_to_rtol", "-solve_to fmg: a coarse level stops once its estimated algebraic error in the energy norm is this fraction of the error of its start (the prolongated guess)", o.rtol, 0, 1));
