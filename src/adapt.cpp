@@ -91,7 +91,6 @@ PetscErrorCode AdaptiveRefinement::Next(Step &step, bool &more)
   if (nested_) { // a level of the first mesh's hierarchy; its finest level is step 0
     PetscCall(nested_->Next(step, more));
     PetscCheck(more, PetscObjectComm((PetscObject)mesh_), PETSC_ERR_PLIB, "nested iteration ended before the first mesh");
-    if (step.mesh == levels_->dm.back()) step_ = 0;
     PetscFunctionReturn(0);
   }
   if (++step_ > 0) PetscCall(Refine());
@@ -237,9 +236,9 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
   PetscLogDouble         now, t0;
   PetscFunctionBeginUser;
   if (nested_) {
-    const bool first = step_ == 0;
     PetscCall(nested_->Solved(std::move(m)));
-    if (!first) PetscFunctionReturn(0);
+    if (!nested_->finest.u) PetscFunctionReturn(0); // a coarse level
+    step_           = 0;
     MeshSolution s0 = std::move(nested_->finest);
     nested_->finest = MeshSolution(); // a moved MeshSolution still holds the handles
     nested_.reset();
@@ -258,9 +257,8 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
   row.dofs         = m.space.numGlobal;
   row.newtonIts    = m.result.newtonIts;
   row.kspIts       = m.result.kspIts;
-  row.setupSeconds = m.setupSeconds;
   row.nestedLevels = (PetscInt)m.result.levels.size();
-  if (row.nestedLevels > 0) row.setupSeconds = 0; // all of nested iteration's levels (step 0)
+  row.setupSeconds = m.result.levels.empty() ? m.setupSeconds : 0; // step 0 by nested iteration: all its levels'
   for (const SolveResult::Level &l : m.result.levels) row.setupSeconds += l.setupSeconds;
   row.solveSeconds = m.result.solveSeconds + multigridSeconds_;
   multigridSeconds_ = 0;

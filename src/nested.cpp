@@ -140,10 +140,10 @@ PetscErrorCode NestedIteration::CoarseSpaceTransfers(PetscInt l, const Space &sp
   if (handover_) handover_->p1Dofs.push_back(p1.numGlobal);
   std::swap(p1Prev_, p1);
   PetscCall(SpaceDestroy(p1));
-  if (l + 1 == levels_.Count() && handover_) { // the next transfer starts from it
-    handover_->p1 = p1Prev_;
-    p1Prev_       = Space(); // a copied Space still holds the handles
-  } else if (l + 1 == levels_.Count()) PetscCall(SpaceDestroy(p1Prev_)); // no level after the finest needs it
+  if (l + 1 == levels_.Count()) { // the finest level's P1 space: the next transfer's coarse space, if any
+    if (handover_) handover_->p1 = p1Prev_, p1Prev_ = Space(); // a copied Space still holds the handles
+    else PetscCall(SpaceDestroy(p1Prev_));
+  }
   PetscCall(SecondsSince(PetscObjectComm((PetscObject)space.dm), t0, &seconds));
   prolongSeconds_ += seconds;
   PetscFunctionReturn(0);

@@ -124,65 +124,57 @@ PetscErrorCode ConvergenceStudy::Refine()
 PetscErrorCode ConvergenceStudy::Next(Step &step, bool &more)
 {
   PetscFunctionBeginUser;
+  if (!refNested_) {
+    if (step_ < 0) PetscCall(Refine());
+    ++step_;
+    more = step_ < NumRows() || (step_ == NumRows() && o_.referenceRefine > 0);
+    if (!more) PetscFunctionReturn(0);
+    if (step_ == NumRows() && Carrying()) PetscCall(StartReference());
+  }
   if (refNested_) { // a level of the reference's nested iteration
     PetscCall(refNested_->Next(step, more));
-    refFinest_ = step.mesh == refLevels_.dm.back();
     PetscFunctionReturn(0);
   }
-  if (step_ < 0) PetscCall(Refine());
-  ++step_;
-  more = step_ < NumRows() || (step_ == NumRows() && o_.referenceRefine > 0);
-  if (!more) PetscFunctionReturn(0);
   const bool reference = step_ == NumRows();
-  if (reference && Carrying()) {
-    PetscCall(hierarchy_.Destroy()); // the rows' transfers
-    PetscCall(SpaceDestroy(p1Prev_));
-    refLevels_.dm.assign(levels_.begin(), levels_.end());
-    for (DM dm : refLevels_.dm) PetscCall(PetscObjectReference((PetscObject)dm));
-    refLevels_.parent = parent_; // nested iteration frees each once used; the rows' errors need them after
-    if (o_.nested.levels >= 0 && refLevels_.Count() > o_.nested.levels + 1) { // -nested_levels: the coarse levels solved first
-      const PetscInt drop = refLevels_.Count() - (o_.nested.levels + 1);
-      for (PetscInt l = 0; l < drop; ++l) PetscCall(DMDestroy(&refLevels_.dm[l]));
-      refLevels_.dm.erase(refLevels_.dm.begin(), refLevels_.dm.begin() + drop);
-      refLevels_.parent.erase(refLevels_.parent.begin(), refLevels_.parent.begin() + drop);
-    }
-    PipelineOptions fine;
-    PetscCall(ReferenceOptions(fine));
-    refNested_ = std::make_unique<NestedIteration>(refLevels_, problem_, fine, o_.nested);
-    PetscCall(refNested_->Next(step, more));
-    refFinest_ = step.mesh == refLevels_.dm.back();
-    PetscFunctionReturn(0);
-  }
   const PetscInt level = reference ? Finest() : step_ % o_.levels;
-  step                  = Step();
-  step.mesh             = levels_[level];
-  if (reference) {
-    PetscCall(ReferenceOptions(step.options));
-    PetscFunctionReturn(0);
-  }
-  step.options.element  = o_.elements[step_ / o_.levels];
-  step.options.assembly = assembly_;
-  step.options.solve    = solve_;
-  step.options.solve.compareLinear = false;
+  step                 = Step{levels_[level], SolveOptionsFor(reference ? o_.referenceElement : o_.elements[step_ / o_.levels])};
+  if (reference) PetscFunctionReturn(0);
   if (Multigrid()) step.options.solve.amgReuse.hierarchy = &hierarchy_; // complete once Carry ran
-  step.options.kktHint  = false;
   step.options.estimate.enabled = estimate_.enabled;
-  step.options.keepMesh = level == o_.levels - 1 && !o_.profiles.empty();
+  step.options.keepMesh         = level == o_.levels - 1 && !o_.profiles.empty();
   PetscCall(PetscTime(&stepStart_));
   PetscFunctionReturn(0);
 }
 
-// The reference's solve: the user's solver settings, no estimate, no KKT warning, no linear comparison.
-PetscErrorCode ConvergenceStudy::ReferenceOptions(PipelineOptions &o) const
+// A solve of the study: the user's solver settings, no KKT warning, no linear comparison, no estimate
+// (the rows turn it on).
+PipelineOptions ConvergenceStudy::SolveOptionsFor(Element element) const
 {
-  PetscFunctionBeginUser;
-  o                     = PipelineOptions();
-  o.element             = o_.referenceElement;
+  PipelineOptions o;
+  o.element             = element;
   o.assembly            = assembly_;
   o.solve               = solve_;
   o.solve.compareLinear = false;
   o.kktHint             = false;
   o.estimate.enabled    = false;
+  return o;
+}
+
+// The reference by nested iteration over the study's levels, the coarsest ones left out as -nested_levels
+// says (as MeshCreate keeps them for a run). The levels are the study's own, referenced (nested iteration
+// frees each once used), and their parent maps copied: the rows' errors need them afterwards.
+PetscErrorCode ConvergenceStudy::StartReference()
+{
+  PetscFunctionBeginUser;
+  PetscCall(hierarchy_.Destroy()); // the rows' transfers
+  PetscCall(SpaceDestroy(p1Prev_));
+  const PetscInt first = o_.nested.levels < 0 ? 0 : PetscMax(0, Finest() - o_.nested.levels);
+  for (PetscInt l = first; l <= Finest(); ++l) {
+    PetscCall(PetscObjectReference((PetscObject)levels_[l]));
+    refLevels_.dm.push_back(levels_[l]);
+    refLevels_.parent.push_back(parent_[l]);
+  }
+  refNested_ = std::make_unique<NestedIteration>(refLevels_, problem_, SolveOptionsFor(o_.referenceElement), o_.nested);
   PetscFunctionReturn(0);
 }
 
@@ -226,7 +218,7 @@ PetscErrorCode ConvergenceStudy::Solved(MeshSolution &&m)
   PetscFunctionBeginUser;
   if (refNested_) {
     PetscCall(refNested_->Solved(std::move(m)));
-    if (!refFinest_) PetscFunctionReturn(0);
+    if (!refNested_->finest.u) PetscFunctionReturn(0); // a coarse level
     MeshSolution ref    = std::move(refNested_->finest);
     refNested_->finest = MeshSolution(); // a moved MeshSolution still holds the handles
     refNested_.reset();

@@ -100,8 +100,8 @@ private:
   // the reference by nested iteration: its levels (references to levels_, copies of parent_)
   MeshLevels                         refLevels_;
   std::unique_ptr<NestedIteration>   refNested_;
-  bool                               refFinest_ = false; // the step under way is the reference level
-  PetscErrorCode                     ReferenceOptions(PipelineOptions &o) const;
+  PetscErrorCode                     StartReference();
+  PipelineOptions                    SolveOptionsFor(Element element) const;
 };
 
 } // namespace signorini
