@@ -22,58 +22,12 @@ PetscErrorCode ElementFromCommandLine(MPI_Comm comm, Element &e)
   PetscFunctionReturn(0);
 }
 
-// J = [X_1 - X_0, ..., X_d - X_0] and its determinant; false for a degenerate simplex: |det| tiny relative
-// to the cell's size (round-off leaves collinear vertices a det ~ 1e-17).
-[[gnu::always_inline]] static inline bool Jacobian(PetscInt dim, const PetscReal *X, PetscReal J[3][3], PetscReal &det)
-{
-  for (PetscInt r = 0; r < dim; ++r)
-    for (PetscInt k = 0; k < dim; ++k) J[r][k] = X[(k + 1) * dim + r] - X[r];
-  if (dim == 2) det = J[0][0] * J[1][1] - J[0][1] * J[1][0];
-  else det = J[0][0] * (J[1][1] * J[2][2] - J[1][2] * J[2][1]) - J[0][1] * (J[1][0] * J[2][2] - J[1][2] * J[2][0]) + J[0][2] * (J[1][0] * J[2][1] - J[1][1] * J[2][0]);
-  PetscReal h2 = 0;
-  for (PetscInt k = 0; k < dim; ++k) {
-    PetscReal len2 = 0;
-    for (PetscInt r = 0; r < dim; ++r) len2 += J[r][k] * J[r][k];
-    h2 = std::max(h2, len2);
-  }
-  const PetscReal h = std::sqrt(h2);
-  return std::isfinite(det) && std::fabs(det) > 1e-12 * (dim == 2 ? h * h : h * h * h);
-}
+bool ComputeCellGeometry(PetscInt dim, const PetscReal *X, CellGeometry &g) { return dim == 2 ? ComputeCellGeometryD<2>(X, g) : ComputeCellGeometryD<3>(X, g); }
 
 bool SimplexIsValid(PetscInt dim, const PetscReal *X)
 {
   PetscReal J[3][3], det;
-  return Jacobian(dim, X, J, det);
-}
-
-bool ComputeCellGeometry(PetscInt dim, const PetscReal *X, CellGeometry &g)
-{
-  // grad lambda_k = row k-1 of J^{-1}, grad lambda_0 = -sum of the others.
-  PetscReal J[3][3], inv[3][3], det;
-  if (!Jacobian(dim, X, J, det)) return false;
-  // One division a cell, not one an entry: the estimate and the transfers call this for every cell, and
-  // the divisions were its largest cost.
-  const PetscReal invDet = 1 / det;
-  if (dim == 2) {
-    inv[0][0] = J[1][1] * invDet, inv[0][1] = -J[0][1] * invDet;
-    inv[1][0] = -J[1][0] * invDet, inv[1][1] = J[0][0] * invDet;
-  } else {
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) {
-        // cofactor of J[j][i], divided by det
-        int r0 = (j + 1) % 3, r1 = (j + 2) % 3, c0 = (i + 1) % 3, c1 = (i + 2) % 3;
-        inv[i][j] = (J[r0][c0] * J[r1][c1] - J[r0][c1] * J[r1][c0]) * invDet;
-      }
-  }
-  g.volume = std::fabs(det) / (dim == 2 ? 2.0 : 6.0);
-  SimplexCentroid(dim, X, g.centroid);
-  for (PetscInt d = 0; d < dim; ++d) g.gradLambda[0][d] = 0;
-  for (PetscInt k = 1; k <= dim; ++k)
-    for (PetscInt d = 0; d < dim; ++d) {
-      g.gradLambda[k][d] = inv[k - 1][d];
-      g.gradLambda[0][d] -= inv[k - 1][d];
-    }
-  return true;
+  return dim == 2 ? SimplexJacobian<2>(X, J, det) : SimplexJacobian<3>(X, J, det);
 }
 
 void Space::Point(PetscInt c, const PetscReal *lambda, PetscReal *x) const { SimplexPoint(dim, X(c), lambda, x); }

@@ -18,7 +18,7 @@ template <int D, class Coords, class F>
 void ForEachFineDofD(const Space &coarse, PetscInt numFine, const std::vector<PetscInt> &parent, Coords X, F f)
 {
   PetscReal     lambda[4], mu[4][4], x[3];
-  CellGeometry  g;
+  CellGeometry  g{}; // set at the first cell (pc != last); zeroed here only for the compiler's sake
   PetscInt      last = -1;
   const bool    p1 = coarse.element == Element::P1;
   Space::Coords XH;
@@ -30,7 +30,7 @@ void ForEachFineDofD(const Space &coarse, PetscInt numFine, const std::vector<Pe
     if (c + kAhead < numFine)
       for (PetscInt k = 0; k <= D; ++k) __builtin_prefetch(&coarse.vertX[coarse.cellVert[parent[c + kAhead] * (D + 1) + k] * D]);
     // The children of a parent come one after the other: its vertices and geometry once for all of them.
-    if (pc != last) XH = coarse.X(pc), ComputeCellGeometry(D, XH, g), last = pc;
+    if (pc != last) XH = coarse.X(pc), ComputeCellGeometryD<D>(XH, g), last = pc;
     for (PetscInt i = 0; i <= D; ++i) {
       // A P1 DOF's point is its vertex: SimplexPoint would give exactly its coordinates (1 x X_i + 0 x ...).
       const PetscReal *xi = p1 ? &Xh[i * D] : x;
