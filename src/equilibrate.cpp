@@ -482,9 +482,8 @@ private:
 
   // The patch problem on the chain (the same problem as SolveOnce's): edge i lies between chain cells i - 1
   // and i (edge 0 of a cycle between the last cell and the first; of a path, the first cell's boundary
-  // face, and edge n the last cell's). The cell graph Laplacian is tridiagonal in the chain's order once
-  // the last cell's row is dropped (when no boundary face is free), so a forward and a backward sweep
-  // solve it: no matching of faces by hashing, no factorisation of a dense matrix.
+  // face, and edge n the last cell's). The fluxes follow from the cells' constraints along the chain up to
+  // one parameter (SolveChainOnce): no matching of faces by hashing, no factorisation of a matrix.
   bool SolveChain(PetscReal *flux)
   {
     const PetscInt n = n_, ne = cycle_ ? n : n + 1;
@@ -521,37 +520,43 @@ private:
     return true;
   }
 
+  // SolveChain's problem in its primal form. With z_k the flux across edge k from chain cell k - 1 to cell
+  // k (edge 0 of a path: into the first cell; edge n: out of the last), cell i's constraint reads
+  // z_{i+1} - z_i = rhs_i over its free edges (the fixed fluxes are in rhs_i), so z_k = z_0 + S_k with
+  // S_k = rhs_0 + ... + rhs_{k-1}: one parameter z_0, set by the constraint of a fixed boundary edge, or
+  // else (a cycle, a path with both boundary edges free) the minimiser of sum_k (h_k z_k^2 / 2 - c_k z_k)
+  // over the free edges, z_0 = sum_k (c_k - h_k S_k) / sum_k h_k. The multipliers' tridiagonal system
+  // solves the same problem in two sweeps with three divisions a row, one waiting for the other.
   bool SolveChainOnce()
   {
     const PetscInt n = n_, ne = (PetscInt)edges_.size();
     // resid = t - fixed on a cell's faces containing a; the constraint's right-hand side per cell.
     rhs_.resize(n);
     PetscReal volume = 0, mismatch = 0;
-    bool      grounded = false;
-    for (const ChainEdge &E : edges_) grounded |= E.free && (E.leftCell < 0 || E.rightCell < 0);
-    const auto resid = [&](PetscInt cell, bool rightFace) {
-      const Link     &L    = chain_[cell];
-      const PetscInt  face = rightFace ? L.right : L.left;
-      const ChainEdge &E   = edges_[rightFace ? (cell + 1) % ne : cell];
+    const bool freeFirst = edges_[0].free, freeLast = edges_[ne - 1].free;
+    const bool grounded = !cycle_ && (freeFirst || freeLast);
+    const auto resid    = [&](PetscInt cell, bool rightFace) {
+      const Link      &L    = chain_[cell];
+      const PetscInt   face = rightFace ? L.right : L.left;
+      const ChainEdge &E    = edges_[rightFace ? (cell + 1) % ne : cell];
       return corners_[L.entry].rec->target[face] - (E.free ? 0.0 : E.value);
     };
     for (PetscInt i = 0; i < n; ++i) {
       const CornerView &c = corners_[chain_[i].entry];
-      rhs_[i]         = -c.Load() + resid(i, false) + resid(i, true);
+      rhs_[i]             = -c.Load() + resid(i, false) + resid(i, true);
       volume += c.rec->volume, mismatch += rhs_[i];
     }
-    // Without a free boundary face the constraints sum to r_a: make them compatible, drop the last cell's.
-    const PetscInt rows = grounded ? n : n - 1;
+    // Without a free boundary face the constraints sum to r_a: make them compatible.
     if (!grounded)
       for (PetscInt i = 0; i < n; ++i) rhs_[i] -= mismatch * corners_[chain_[i].entry].rec->volume / volume;
     // Per free edge: h = the sum of its sides' weights, c = sum of sign * weight * resid (sign +1 on the
-    // left cell's side, -1 on the right's when both exist).
-    diag_.assign(rows, 0.0), off_.assign(rows, 0.0), mu_.resize(rows);
-    for (PetscInt i = 0; i < rows; ++i) mu_[i] = -rhs_[i];
+    // left cell's side, -1 on the right's; for z, whose edge 0 points into the path's first cell, -c there).
+    PetscReal S = 0, H = 0, C = 0;
     for (PetscInt k = 0; k < ne; ++k) {
       ChainEdge &E = edges_[k];
+      if (k > 0) S += rhs_[k - 1];
+      E.x = S; // S_k, until z_0 is known
       if (!E.free) continue;
-      const bool both = E.leftCell >= 0 && E.rightCell >= 0;
       E.h = E.c = 0;
       if (E.leftCell >= 0) {
         const PetscReal w = corners_[chain_[E.leftCell].entry].rec->weight[chain_[E.leftCell].right];
@@ -559,29 +564,18 @@ private:
       }
       if (E.rightCell >= 0) {
         const PetscReal w = corners_[chain_[E.rightCell].entry].rec->weight[chain_[E.rightCell].left];
-        E.h += w, E.c += (both ? -w : w) * resid(E.rightCell, false);
+        E.h += w, E.c -= w * resid(E.rightCell, false); // for a path's edge 0 too: -c of x = -z
       }
-      const PetscReal inv = 1.0 / E.h;
-      if (E.leftCell >= 0 && E.leftCell < rows) diag_[E.leftCell] += inv, mu_[E.leftCell] += E.c * inv;
-      if (E.rightCell >= 0 && E.rightCell < rows) diag_[E.rightCell] += inv, mu_[E.rightCell] += (both ? -E.c : E.c) * inv;
-      if (both && E.leftCell + 1 == E.rightCell && E.rightCell < rows) off_[E.rightCell] = -inv; // row i couples to i - 1
+      H += E.h, C += E.c - E.h * S;
     }
-    // Cholesky-free elimination of the symmetric positive definite tridiagonal system (pivots must stay > 0).
-    for (PetscInt i = 0; i < rows; ++i) {
-      if (i > 0) {
-        const PetscReal l = off_[i] / diag_[i - 1];
-        diag_[i] -= l * off_[i], mu_[i] -= l * mu_[i - 1];
-      }
-      if (!(diag_[i] > 0)) return false;
-    }
-    for (PetscInt i = rows - 1; i >= 0; --i) mu_[i] = (mu_[i] - (i + 1 < rows ? off_[i + 1] * mu_[i + 1] : 0.0)) / diag_[i];
-    for (ChainEdge &E : edges_) {
-      if (!E.free) continue;
-      const bool both = E.leftCell >= 0 && E.rightCell >= 0;
-      PetscReal  x    = E.c;
-      if (E.leftCell >= 0 && E.leftCell < rows) x -= mu_[E.leftCell];
-      if (E.rightCell >= 0 && E.rightCell < rows) x -= (both ? -1.0 : 1.0) * mu_[E.rightCell];
-      E.x = x / E.h;
+    PetscReal z0 = 0; // a path whose edge 0 is fixed: z_1 = rhs_0 (its z_0 counts in rhs_0)
+    if (cycle_ || (freeFirst && freeLast)) {
+      if (!(H > 0)) return false;
+      z0 = C / H;
+    } else if (freeFirst) z0 = -S; // edge n fixed: 0 - z_{n-1} = rhs_{n-1}, i.e. z_0 = -S_n
+    for (PetscInt k = 0; k < ne; ++k) {
+      ChainEdge &E = edges_[k];
+      E.x          = !cycle_ && k == 0 ? -z0 : z0 + E.x; // x: outward from the left cell, or from the only one
     }
     return true;
   }
@@ -597,7 +591,6 @@ private:
   std::vector<Link>      chain_;
   std::vector<ChainEdge> edges_;
   bool                   cycle_ = false;
-  std::vector<PetscReal> diag_, off_;
 
   // Per face containing a, seen from one cell: slot e * nb + j is face j of corner record e.
   // An unknown flux: of an interior face of the patch (two slots: outward from the first, inward to the
@@ -950,6 +943,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
         const char    *rec = (const char *)&cd.cell[c];
         for (size_t b = 0; b < sizeof(CellRecord); b += 64) __builtin_prefetch(rec + b);
         __builtin_prefetch(&r.flux[c * nb], 1); // and the fluxes it adds to
+        __builtin_prefetch(&space.cellVert[c * nb]); // and the vertices it matches faces by
       }
     }
     const PetscInt n = start[o + 1] - start[o], *at = &list[start[o]]; // at[e] = c * nb + corner
