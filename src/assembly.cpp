@@ -137,23 +137,17 @@ static void ComputeCellLoad(const Space &space, const Problem &problem, const Sy
   load.oscillation = SimplexDiameter(dim, X) / M_PI * std::sqrt(dev2 * g.volume / sys.Kappa(c));
 }
 
-void GetCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, std::string &error)
+void EvaluateCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, std::string &error)
 {
-  const PetscInt n = space.dim + 2;
-  if (sys.cellLoads.empty()) {
-    const PetscInt nq = sys.cellRule.Size();
-    std::vector<PetscReal> fx;
-    if (!problem.f->IsConstant()) {
-      fx.resize(nq * (space.dim + 1));
-      RulePoints(space.dim, X, sys.cellRule, &fx[nq]);
-      problem.f->SetCellSet(space.CellSet(c));
-      problem.f->EvalBatch(nq, &fx[nq], space.dim, nullptr, fx.data(), error);
-    }
-    return ComputeCellLoad(space, problem, sys, c, X, g, fx.data(), fx.data() + nq, work, load, true, nullptr, error);
+  const PetscInt         nq = sys.cellRule.Size();
+  std::vector<PetscReal> fx;
+  if (!problem.f->IsConstant()) {
+    fx.resize(nq * (space.dim + 1));
+    RulePoints(space.dim, X, sys.cellRule, &fx[nq]);
+    problem.f->SetCellSet(space.CellSet(c));
+    problem.f->EvalBatch(nq, &fx[nq], space.dim, nullptr, fx.data(), error);
   }
-  const PetscReal *kept = &sys.cellLoads[c * n];
-  std::copy(kept, kept + n - 1, load.moment);
-  load.oscillation = kept[n - 1];
+  ComputeCellLoad(space, problem, sys, c, X, g, fx.data(), fx.data() + nq, work, load, true, nullptr, error);
 }
 
 // f at the load rule's points of a block of cells, one evaluation of the expression for the whole block.

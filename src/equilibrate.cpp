@@ -224,14 +224,14 @@ void CellDataOf(const Space &space, const Problem &problem, const System &sys, c
 {
   constexpr PetscInt  nb = dim + 1;
   CellGeometry        g;
-  const Space::Coords X = space.X(c);
+  const Space::Coords X = space.XD<dim>(c);
   ComputeCellGeometryD<dim>(X, g);
   for (PetscInt j = 0; j < 4; ++j) rec.kind[j] = kFaceOther, rec.weight[j] = rec.target[j] = rec.load[j] = 0;
   rec.extra           = -1;
   rec.volume          = g.volume;
   const PetscReal kap = sys.Kappa(c);
   PetscReal G[3];
-  space.Grad(c, u, g, G);
+  space.GradP1<dim>(c, u, g, G);
   RT0MassDiagonal<dim>(X, g.volume, rec.weight);
   rec.coupled = Stretched<dim>(rec.weight, g.volume);
   if (rec.coupled) CoupleCell<dim>(X, g.volume, kap, rec, extra);

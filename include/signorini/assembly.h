@@ -58,9 +58,17 @@ PetscErrorCode SystemDestroy(System &sys);
 // J(u) = 1/2 a_h(u, u) - chi(u), computed cell by cell from the unreduced element matrices.
 PetscErrorCode DiscreteEnergy(const Space &space, const System &sys, Vec u, PetscReal *J);
 // The load of cell c (vertices X, geometry g) as the assembly computed it: read from sys.cellLoads where the
-// assembly kept them, else evaluated again (a constant f is not evaluated per point). `work` is scratch
+// assembly kept them (inline: the estimate's cell loops read it for every cell), else evaluated again (a constant f is not evaluated per point). `work` is scratch
 // space kept across cells; a NaN of f is reported in `error` (CheckAll after the loop).
-void GetCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, std::string &error);
+void EvaluateCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, std::string &error);
+inline void GetCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, std::string &error)
+{
+  if (sys.cellLoads.empty()) return EvaluateCellLoad(space, problem, sys, c, X, g, work, load, error);
+  const PetscInt   n    = space.dim + 2; // dim + 1 moments, then the oscillation
+  const PetscReal *kept = &sys.cellLoads[c * n];
+  for (PetscInt k = 0; k < n - 1; ++k) load.moment[k] = kept[k];
+  load.oscillation = kept[n - 1];
+}
 // Diameter of the simplex with vertices X (its longest edge).
 PetscReal SimplexDiameter(PetscInt dim, const PetscReal *X);
 // Element stiffness of cell c (nb x nb, row-major).

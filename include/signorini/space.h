@@ -197,6 +197,22 @@ struct Space {
       for (PetscInt d = 0; d < dim; ++d) X.x[k * dim + d] = vertX[cellVert[c * (dim + 1) + k] * dim + d];
     return X;
   }
+  // X(c) and, for P1, Grad with the dimension a constant: in the cell loops that know it, their loops unroll.
+  template <PetscInt D>
+  Coords XD(PetscInt c) const
+  {
+    Coords X;
+    for (PetscInt k = 0; k <= D; ++k)
+      for (PetscInt d = 0; d < D; ++d) X.x[k * D + d] = vertX[cellVert[c * (D + 1) + k] * D + d];
+    return X;
+  }
+  template <PetscInt D>
+  void GradP1(PetscInt c, const PetscScalar *a, const CellGeometry &g, PetscReal *grad) const
+  {
+    for (PetscInt d = 0; d < D; ++d) grad[d] = 0;
+    for (PetscInt i = 0; i <= D; ++i)
+      for (PetscInt d = 0; d < D; ++d) grad[d] += PetscRealPart(a[cellVert[c * (D + 1) + i]]) * g.gradLambda[i][d];
+  }
   PetscReal BasisValue(PetscInt, PetscInt i, const PetscReal *lambda) const
   {
     return element == Element::P1 ? lambda[i] : 1.0 - dim * lambda[i];
