@@ -190,13 +190,7 @@ struct Space {
   // cells per vertex, and a second table would cost 96 bytes per DOF.
   const PetscInt *Dofs(PetscInt c) const { return &(element == Element::P1 ? cellVert : cellDof)[c * (dim + 1)]; }
   PetscInt        Vertex(PetscInt c, PetscInt k) const { return vStart + cellVert[c * (dim + 1) + k]; } // mesh point
-  Coords          X(PetscInt c) const
-  {
-    Coords X;
-    for (PetscInt k = 0; k <= dim; ++k)
-      for (PetscInt d = 0; d < dim; ++d) X.x[k * dim + d] = vertX[cellVert[c * (dim + 1) + k] * dim + d];
-    return X;
-  }
+  Coords          X(PetscInt c) const { return dim == 2 ? XD<2>(c) : XD<3>(c); }
   // X(c) and, for P1, Grad with the dimension a constant: in the cell loops that know it, their loops unroll.
   template <PetscInt D>
   Coords XD(PetscInt c) const
