@@ -21,17 +21,26 @@ PetscErrorCode AssemblyOptionsFromCommandLine(MPI_Comm comm, AssemblyOptions &o)
   PetscFunctionReturn(0);
 }
 
-void ElementStiffness(const Space &space, PetscInt c, PetscReal kappa, const CellGeometry &g, PetscReal *Ke)
+// The dimension a template parameter in the cell loops (see ComputeCellGeometryD), a variable elsewhere.
+template <PetscInt dim>
+static void ElementStiffnessD(Element element, PetscReal kappa, const CellGeometry &g, PetscReal *Ke)
 {
-  const PetscInt nb = space.Nb();
-  PetscReal      grad[4][3];
-  for (PetscInt i = 0; i < nb; ++i) space.BasisGrad(c, i, g, grad[i]);
+  constexpr PetscInt nb = dim + 1;
+  const PetscReal    b  = element == Element::P1 ? 1.0 : -(PetscReal)dim; // grad phi_i = b grad lambda_i
+  PetscReal          grad[4][3];
+  for (PetscInt i = 0; i < nb; ++i)
+    for (PetscInt d = 0; d < dim; ++d) grad[i][d] = b * g.gradLambda[i][d];
   for (PetscInt i = 0; i < nb; ++i)
     for (PetscInt j = 0; j < nb; ++j) {
       PetscReal dot = 0;
-      for (PetscInt d = 0; d < space.dim; ++d) dot += grad[i][d] * grad[j][d];
+      for (PetscInt d = 0; d < dim; ++d) dot += grad[i][d] * grad[j][d];
       Ke[i * nb + j] = kappa * g.volume * dot;
     }
+}
+void ElementStiffness(const Space &space, PetscInt, PetscReal kappa, const CellGeometry &g, PetscReal *Ke)
+{
+  if (space.dim == 2) ElementStiffnessD<2>(space.element, kappa, g, Ke);
+  else ElementStiffnessD<3>(space.element, kappa, g, Ke);
 }
 
 // The load as double precision holds it: f (or g) times a quadrature weight and a cell measure may
@@ -173,9 +182,11 @@ struct LoadBlock {
 
 // Cell loop: stiffness into A, f-load into the local load vector, and each cell's load into
 // sys.cellLoads when they are kept. Cells go in blocks, f evaluated once per block.
-static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, bool keepLoads, System &sys, StiffnessFill &fill, PetscScalar *load, LoadRange &range, std::string &error)
+template <PetscInt dim>
+static PetscErrorCode AssembleCellsD(const Space &space, const Problem &problem, bool keepLoads, System &sys, StiffnessFill &fill, PetscScalar *load, LoadRange &range, std::string &error)
 {
-  const PetscInt         nb = space.Nb(), dim = space.dim, nq = sys.cellRule.Size();
+  constexpr PetscInt     nb = dim + 1;
+  const PetscInt         nq = sys.cellRule.Size();
   PetscReal              Ke[16], phi[4][4], vertex[4];
   std::vector<PetscReal> work;
   Space::Coords          X[LoadBlock::kCells];
@@ -191,9 +202,9 @@ static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, 
   for (PetscInt c0 = 0; c0 < space.NumCells(); c0 += LoadBlock::kCells) {
     const PetscInt m = std::min(LoadBlock::kCells, space.NumCells() - c0);
     for (PetscInt i = 0; i < m; ++i) {
-      X[i] = space.X(c0 + i); // gathered once: every quadrature point needs it
-      ComputeCellGeometry(dim, X[i], g[i]);
-      ElementStiffness(space, c0 + i, sys.Kappa(c0 + i), g[i], Ke);
+      X[i] = space.XD<dim>(c0 + i); // gathered once: every quadrature point needs it
+      ComputeCellGeometryD<dim>(X[i], g[i]);
+      ElementStiffnessD<dim>(space.element, sys.Kappa(c0 + i), g[i], Ke);
       PetscCall(fill.Add(space.Dofs(c0 + i), Ke));
     }
     if (zeroLoad) continue;
@@ -215,6 +226,10 @@ static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, 
     }
   }
   PetscFunctionReturn(0);
+}
+static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, bool keepLoads, System &sys, StiffnessFill &fill, PetscScalar *load, LoadRange &range, std::string &error)
+{
+  return space.dim == 2 ? AssembleCellsD<2>(space, problem, keepLoads, sys, fill, load, range, error) : AssembleCellsD<3>(space, problem, keepLoads, sys, fill, load, range, error);
 }
 
 // The points of the face rule on boundary face bf (x, rule.Size() * dim values), and their barycentric
