@@ -54,27 +54,31 @@ namespace {
 
 enum FaceKind : char { kFaceOther = 0, kFaceDirichlet = 1, kFaceNeumann = 2, kFaceContact = 3 };
 
-// Per local cell, what the patches of its vertices read, in one record a cell (136 B): a patch
+// Per local cell, what the patches of its vertices read, in one record a cell (80 B): a patch
 // reads its cells' records where they are (the patch's corner of the cell beside them, CornerView), so
-// nothing is copied per corner. No initialisers: ComputeCellData writes every record once.
+// nothing is copied per corner. No initialisers: ComputeCellData writes every record once. What the
+// estimate has elsewhere stays there (the loads in System::cellLoads; kappa_T grad u_h is computed again
+// for the flux terms): the array is new memory at every adaptive step, the largest of the estimate, and
+// fresh memory costs more than the arithmetic saved by keeping it.
 struct CellRecord {
   char      kind[4];   // FaceKind of the cell's face j (opposite vertex j)
-  char      coupled;   // whether the patches use the cell's full RT0 mass matrix (CellExtra::mass), see Stretched
   PetscInt  extra;     // index into CellData::extra, -1 for none
   PetscReal weight[4]; // int_T |phi_j|^2 / kappa_T, phi_j the RT0 function of unit flux on face j
   PetscReal target[4]; // fluxes of the RT0 interpolant of G_T: G_T . n_j |F_j| / d (psi_a G: all but face `corner`)
-  PetscReal load[4];   // int_T f psi_k
   PetscReal volume;
-  PetscReal kg[3];     // kappa_T grad u_h: the estimate's cell terms once the flux is known
 };
 // What few cells need beyond their record: those with Neumann faces, and the coupled ones.
 struct CellExtra {
   PetscReal neumann[16]; // [j * 4 + k] = int_{F_j} g psi_k (0 off Neumann faces)
   PetscReal mass[6];     // coupled cells: the RT0 mass matrix's entries off the diagonal / kappa_T (MassPair)
+  bool      coupled = false; // whether the patches use the cell's full RT0 mass matrix (mass), see Stretched
 };
 struct CellData {
-  std::unique_ptr<CellRecord[]> cell; // default-initialised: a zeroing pass over ~130 B a cell saved
+  std::unique_ptr<CellRecord[]> cell; // default-initialised: a zeroing pass over the records saved
   std::vector<CellExtra>        extra;
+  const PetscReal              *load = nullptr; // int_T f psi_k at load[c * loadStride + k]
+  PetscInt                      loadStride = 0;
+  std::vector<PetscReal>        ownLoad; // the loads where the assembly did not keep them (System::cellLoads)
   bool                          anyCoupled = false; // on any rank: else no patch looks for coupled cells
 };
 // The place of entry (i, j), i != j, of a cell's mass matrix in CellExtra::mass: pairs (0,1) (0,2) (0,3)
@@ -89,9 +93,11 @@ inline PetscInt MassPair(PetscInt i, PetscInt j)
 struct Corner {
   CellRecord cell;
   PetscInt   gid[4];      // global vertex numbers of the cell's vertices
-  PetscInt   corner, pad; // which vertex of the cell is the centre a; the reals start 8-byte aligned either way
+  PetscInt   corner;      // which vertex of the cell is the centre a
+  PetscInt   coupled;     // CellExtra::coupled (the reals start 8-byte aligned)
   PetscReal  neumann[4];  // int_{F_j} g psi_a on Neumann faces, 0 elsewhere
   PetscReal  mass[6];     // CellExtra::mass of a coupled cell
+  PetscReal  load[4];     // int_T f psi_k
 };
 
 // What a patch reads of one of its cells: the cell's record and its corner at the centre a.
@@ -101,7 +107,8 @@ struct CornerView {
   const PetscReal  *nm;   // int_{F_j} g psi_a at nm[j * stride]
   PetscInt          corner, stride;
   const PetscReal  *mass; // CellExtra::mass of a coupled cell, null for the others
-  PetscReal         Load() const { return rec->load[corner]; }
+  const PetscReal  *load; // int_T f psi_k at load[k]
+  PetscReal         Load() const { return load[corner]; }
   PetscReal         Neumann(PetscInt j) const { return nm[j * stride]; }
   // int_T phi_i . phi_j / kappa_T for faces i, j of the cell (for an uncoupled cell only i == j is asked)
   PetscReal         Mass(PetscInt i, PetscInt j) const { return i == j ? rec->weight[i] : mass[MassPair(i, j)]; }
@@ -112,11 +119,12 @@ CornerView ViewOf(const CellData &cd, const Space &space, PetscInt c, PetscInt k
 {
   const CellRecord &rec  = cd.cell[c];
   const PetscInt   *vert = &space.cellVert[c * space.Nb()];
-  if (rec.extra < 0) return {&rec, vert, kNoNeumann, k, 0, nullptr};
+  const PetscReal  *load = &cd.load[c * cd.loadStride];
+  if (rec.extra < 0) return {&rec, vert, kNoNeumann, k, 0, nullptr, load};
   const CellExtra &x = cd.extra[rec.extra];
-  return {&rec, vert, &x.neumann[k], k, 4, rec.coupled ? x.mass : nullptr};
+  return {&rec, vert, &x.neumann[k], k, 4, x.coupled ? x.mass : nullptr, load};
 }
-CornerView ViewOf(const Corner &g) { return {&g.cell, g.gid, g.neumann, g.corner, 1, g.cell.coupled ? g.mass : nullptr}; }
+CornerView ViewOf(const Corner &g) { return {&g.cell, g.gid, g.neumann, g.corner, 1, g.coupled ? g.mass : nullptr, g.load}; }
 
 // int_T |phi_j|^2 with phi_j = (x - X_j) / (d |T|), the diagonal of the RT0 mass matrix: exact, from
 // int_T lambda_i lambda_m = |T| (1 + delta_im) / ((d+1)(d+2)).
@@ -191,6 +199,7 @@ __attribute__((noinline)) void CoupleCell(const PetscReal *X, PetscReal volume, 
 {
   rec.extra = (PetscInt)extra.size();
   extra.push_back({});
+  extra.back().coupled = true;
   PetscReal *M = extra.back().mass;
   RT0MassOffDiagonal<dim>(X, volume, M);
   for (PetscInt p = 0; p < 6; ++p) M[p] /= kappa;
@@ -216,36 +225,52 @@ inline PetscInt CellOf(PetscInt i, PetscInt nb) { return nb == 4 ? i >> 2 : i / 
 
 bool Contains(const std::vector<PetscInt> &parts, PetscInt p) { return std::find(parts.begin(), parts.end(), p) != parts.end(); }
 
-// The loads by the assembly's rules (AssembleCells, AssembleNeumann), per vertex of each cell, and the
-// cells' oscillations that come with them.
-// The record and the oscillation of cell c.
+// The record of cell c.
 template <PetscInt dim>
-void CellDataOf(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, PetscInt c, CellRecord &rec, std::vector<CellExtra> &extra, PetscReal &oscillation, std::vector<PetscReal> &work, std::string &error)
+void CellDataOf(const Space &space, const System &sys, const PetscScalar *u, PetscInt c, CellRecord &rec, std::vector<CellExtra> &extra)
 {
   constexpr PetscInt  nb = dim + 1;
   CellGeometry        g;
   const Space::Coords X = space.XD<dim>(c);
   ComputeCellGeometryD<dim>(X, g);
-  for (PetscInt j = 0; j < 4; ++j) rec.kind[j] = kFaceOther, rec.weight[j] = rec.target[j] = rec.load[j] = 0;
+  for (PetscInt j = 0; j < 4; ++j) rec.kind[j] = kFaceOther, rec.weight[j] = rec.target[j] = 0;
   rec.extra           = -1;
   rec.volume          = g.volume;
   const PetscReal kap = sys.Kappa(c);
-  PetscReal G[3];
+  PetscReal       G[3];
   space.GradP1<dim>(c, u, g, G);
   RT0MassDiagonal<dim>(X, g.volume, rec.weight);
-  rec.coupled = Stretched<dim>(rec.weight, g.volume);
-  if (rec.coupled) CoupleCell<dim>(X, g.volume, kap, rec, extra);
+  if (Stretched<dim>(rec.weight, g.volume)) CoupleCell<dim>(X, g.volume, kap, rec, extra);
   for (PetscInt j = 0; j < nb; ++j) rec.weight[j] /= kap;
-  for (PetscInt d = 0; d < 3; ++d) rec.kg[d] = d < dim ? kap * G[d] : 0;
   for (PetscInt j = 0; j < nb; ++j) {
     PetscReal dot = 0; // |F_j| n_j = -d |T| grad lambda_j
     for (PetscInt d = 0; d < dim; ++d) dot += kap * G[d] * g.gradLambda[j][d];
     rec.target[j] = -g.volume * dot;
   }
-  CellLoad load;
-  GetCellLoad(space, problem, sys, c, X, g, work, load, error);
-  for (PetscInt k = 0; k < nb; ++k) rec.load[k] = load.moment[k];
-  oscillation = load.oscillation;
+}
+
+// The loads by the assembly's rules (AssembleCells, AssembleNeumann), per vertex of each cell, and the
+// cells' oscillations that come with them: where the assembly kept them, or evaluated again.
+void CellLoads(const Space &space, const Problem &problem, const System &sys, CellData &cd, std::vector<PetscReal> &oscillation, std::string &error)
+{
+  const PetscInt n = space.dim + 2, nc = space.NumCells(); // dim + 1 moments, then the oscillation
+  if (sys.cellLoads.empty()) {
+    std::vector<PetscReal> work;
+    cd.ownLoad.resize(nc * n);
+    for (PetscInt c = 0; c < nc; ++c) {
+      const Space::Coords X = space.X(c);
+      CellGeometry        g;
+      CellLoad            load;
+      ComputeCellGeometry(space.dim, X, g);
+      GetCellLoad(space, problem, sys, c, X, g, work, load, error);
+      std::copy(load.moment, load.moment + n - 1, &cd.ownLoad[c * n]);
+      cd.ownLoad[c * n + n - 1] = load.oscillation;
+    }
+  }
+  cd.load       = sys.cellLoads.empty() ? cd.ownLoad.data() : sys.cellLoads.data();
+  cd.loadStride = n;
+  oscillation.resize(nc);
+  for (PetscInt c = 0; c < nc; ++c) oscillation[c] = cd.load[c * n + n - 1];
 }
 
 PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const System &sys, const PetscScalar *u, CellData &cd, std::vector<PetscReal> &oscillation)
@@ -254,14 +279,13 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
   std::string    error;
   PetscReal      x[3], lambda[4];
   PetscFunctionBeginUser;
+  CellLoads(space, problem, sys, cd, oscillation, error);
   cd.cell.reset(new CellRecord[nc]);
   cd.extra.clear();
-  oscillation.resize(nc);
-  std::vector<PetscReal> work;
   for (PetscInt c = 0; c < nc; ++c) {
     PrefetchVertices(space, c + kCellsAhead, u);
-    if (dim == 2) CellDataOf<2>(space, problem, sys, u, c, cd.cell[c], cd.extra, oscillation[c], work, error);
-    else CellDataOf<3>(space, problem, sys, u, c, cd.cell[c], cd.extra, oscillation[c], work, error);
+    if (dim == 2) CellDataOf<2>(space, sys, u, c, cd.cell[c], cd.extra);
+    else CellDataOf<3>(space, sys, u, c, cd.cell[c], cd.extra);
   }
   PetscInt coupled = (PetscInt)cd.extra.size(); // so far only the coupled cells have an entry
   for (const BoundaryFace &bf : space.boundary) {
@@ -297,8 +321,8 @@ void FillCorner(const CellData &cd, const Space &space, const PetscInt *gidx, Pe
   const CornerView v  = ViewOf(cd, space, c, k);
   r.cell              = cd.cell[c];
   r.corner            = k;
-  r.pad               = 0;
-  for (PetscInt j = 0; j < 4; ++j) r.gid[j] = j < nb ? gidx[v.vert[j]] : 0, r.neumann[j] = j < nb ? v.Neumann(j) : 0.0;
+  r.coupled           = v.mass != nullptr;
+  for (PetscInt j = 0; j < 4; ++j) r.gid[j] = j < nb ? gidx[v.vert[j]] : 0, r.neumann[j] = j < nb ? v.Neumann(j) : 0.0, r.load[j] = j < nb ? v.load[j] : 0.0;
   for (PetscInt p = 0; p < 6; ++p) r.mass[p] = v.mass ? v.mass[p] : 0.0;
 }
 
@@ -833,27 +857,30 @@ private:
   std::vector<PetscReal> L_, mu_, fixed_, rhs_, resid_, d_;
 };
 
-// F_T^2 = ||kappa^{-1/2}(kappa grad u_h - sigma)||_T^2 of every cell (see CellFlux), from the flux and the
-// cell records, before these go. The dimension is a constant here: the short loops of CellFlux, inlined,
+// F_T^2 = ||kappa^{-1/2}(kappa grad u_h - sigma)||_T^2 of every cell (see CellFlux), from the flux and
+// kappa_T grad u_h (computed again: see CellRecord). The dimension is a constant here: the short loops of CellFlux, inlined,
 // unroll (with the dimension a variable this loop took four times as long).
 template <PetscInt dim>
-void FluxTermsD(const Space &space, const System &sys, const CellData &cd, Reconstruction &r)
+void FluxTermsD(const Space &space, const System &sys, const PetscScalar *u, Reconstruction &r)
 {
   constexpr PetscInt nb = dim + 1;
   CellGeometry       g;
+  PetscReal          G[3], kg[3];
   r.fluxTerm.resize(space.NumCells());
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
-    PrefetchVertices(space, c + kCellsAhead);
-    const Space::Coords X = space.X(c);
-    g.volume              = cd.cell[c].volume;
-    SimplexCentroid(dim, X, g.centroid);
-    r.fluxTerm[c] = CellFlux(dim, X, g, &r.flux[c * nb], sys.Kappa(c)).Term(dim, cd.cell[c].kg);
+    PrefetchVertices(space, c + kCellsAhead, u);
+    const Space::Coords X = space.XD<dim>(c);
+    ComputeCellGeometryD<dim>(X, g);
+    space.GradP1<dim>(c, u, g, G);
+    const PetscReal kap = sys.Kappa(c);
+    for (PetscInt d = 0; d < dim; ++d) kg[d] = kap * G[d];
+    r.fluxTerm[c] = CellFlux(dim, X, g, &r.flux[c * nb], kap).Term(dim, kg);
   }
 }
-void FluxTerms(const Space &space, const System &sys, const CellData &cd, Reconstruction &r)
+void FluxTerms(const Space &space, const System &sys, const PetscScalar *u, Reconstruction &r)
 {
-  if (space.dim == 2) FluxTermsD<2>(space, sys, cd, r);
-  else FluxTermsD<3>(space, sys, cd, r);
+  if (space.dim == 2) FluxTermsD<2>(space, sys, u, r);
+  else FluxTermsD<3>(space, sys, u, r);
 }
 
 } // namespace
@@ -882,7 +909,6 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscCall(PetscLogEventBegin(cellEvent, 0, 0, 0, 0));
   PetscCall(ComputeCellData(space, problem, sys, ua, cd, r.oscillation));
   PetscCall(PetscLogEventEnd(cellEvent, 0, 0, 0, 0));
-  PetscCall(VecRestoreArrayRead(loc, &ua));
 
   // The vertices in the order in which the cells first reach them (pos: a vertex's place in it), which is
   // the order of the patches below: the cells of consecutive patches then lie close in memory, where the
@@ -905,18 +931,21 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   Vec          total;
   PetscScalar *la;
   PetscCall(DMGetGlobalVector(space.dm, &total));
-  PetscCall(VecGetArray(loc, &la));
+  Vec                count;
+  const PetscScalar *ca;
+  PetscCall(DMGetLocalVector(space.dm, &count));
+  PetscCall(VecGetArray(count, &la));
   for (PetscInt v = 0; v < nv; ++v) la[v] = start[pos[v] + 1] - start[pos[v]];
-  PetscCall(VecRestoreArray(loc, &la));
+  PetscCall(VecRestoreArray(count, &la));
   PetscCall(VecSet(total, 0));
-  PetscCall(DMLocalToGlobal(space.dm, loc, ADD_VALUES, total));
-  PetscCall(DMGlobalToLocal(space.dm, total, INSERT_VALUES, loc));
+  PetscCall(DMLocalToGlobal(space.dm, count, ADD_VALUES, total));
+  PetscCall(DMGlobalToLocal(space.dm, total, INSERT_VALUES, count));
   PetscCall(DMRestoreGlobalVector(space.dm, &total));
   std::vector<char> shared(nv);
-  PetscCall(VecGetArrayRead(loc, &ua));
-  for (PetscInt v = 0; v < nv; ++v) shared[v] = PetscRealPart(ua[v]) > start[pos[v] + 1] - start[pos[v]] + 0.5;
-  PetscCall(VecRestoreArrayRead(loc, &ua));
-  PetscCall(DMRestoreLocalVector(space.dm, &loc));
+  PetscCall(VecGetArrayRead(count, &ca));
+  for (PetscInt v = 0; v < nv; ++v) shared[v] = PetscRealPart(ca[v]) > start[pos[v] + 1] - start[pos[v]] + 0.5;
+  PetscCall(VecRestoreArrayRead(count, &ca));
+  PetscCall(DMRestoreLocalVector(space.dm, &count));
 
   std::vector<PetscInt> ranges;
   PetscMPIInt           rank;
@@ -944,6 +973,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
         for (size_t b = 0; b < sizeof(CellRecord); b += 64) __builtin_prefetch(rec + b);
         __builtin_prefetch(&r.flux[c * nb], 1); // and the fluxes it adds to
         __builtin_prefetch(&space.cellVert[c * nb]); // and the vertices it matches faces by
+        __builtin_prefetch(&cd.load[c * cd.loadStride]); // and its loads
       }
     }
     const PetscInt n = start[o + 1] - start[o], *at = &list[start[o]]; // at[e] = c * nb + corner
@@ -1007,9 +1037,12 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscCallMPI(MPI_Type_free(&fluxType));
   PetscCall(PetscSFDestroy(&sf));
   PetscCall(CheckAll(comm, ok, "estimate: a vertex patch problem of the P1 flux reconstruction is singular"));
-  std::vector<PetscInt>().swap(list); // its memory for fluxTerm: the estimate's peak stays where it was
+  std::vector<PetscInt>().swap(list); // their memory for fluxTerm: the estimate's peak stays where it was
+  cd.cell.reset();
   PetscCall(PetscLogEventBegin(termEvent, 0, 0, 0, 0));
-  FluxTerms(space, sys, cd, r);
+  FluxTerms(space, sys, ua, r);
+  PetscCall(VecRestoreArrayRead(loc, &ua));
+  PetscCall(DMRestoreLocalVector(space.dm, &loc));
   PetscCall(PetscLogEventEnd(termEvent, 0, 0, 0, 0));
   PetscCall(PetscLogEventEnd(event, 0, 0, 0, 0));
   PetscFunctionReturn(0);

@@ -56,7 +56,7 @@ inline bool SimplexJacobian(const PetscReal *X, PetscReal J[3][3], PetscReal &de
   const PetscReal h = std::sqrt(h2);
   return std::isfinite(det) && std::fabs(det) > 1e-12 * (dim == 2 ? h * h : h * h * h);
 }
-// Returns false for a degenerate cell (and leaves g unset). Inline, with the dimension a template
+// Returns false for a degenerate cell (g then all zero). Inline, with the dimension a template
 // parameter inside: the cell loops call it for millions of cells, and with its loops unrolled it takes a
 // fraction of the time (the same operations in the same order, so the same results).
 template <PetscInt dim>
@@ -64,7 +64,10 @@ inline bool ComputeCellGeometryD(const PetscReal *X, CellGeometry &g)
 {
   // grad lambda_k = row k-1 of J^{-1}, grad lambda_0 = -sum of the others.
   PetscReal J[3][3], inv[3][3], det;
-  if (!SimplexJacobian<dim>(X, J, det)) return false;
+  if (!SimplexJacobian<dim>(X, J, det)) {
+    g = CellGeometry{}; // set even so: the compiler then sees no member of g unset where it is read
+    return false;
+  }
   const PetscReal invDet = 1 / det; // one division a cell, not one an entry
   if (dim == 2) {
     inv[0][0] = J[1][1] * invDet, inv[0][1] = -J[0][1] * invDet;
