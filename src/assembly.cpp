@@ -97,17 +97,23 @@ PetscReal SimplexDiameter(PetscInt dim, const PetscReal *X)
 }
 
 // The points of `rule` in the simplex with vertices X: x[q * dim ..].
-static void RulePoints(PetscInt dim, const PetscReal *X, const Quadrature &rule, PetscReal *x)
+template <PetscInt dim>
+static void RulePointsD(const PetscReal *X, const Quadrature &rule, PetscReal *x)
 {
   for (PetscInt q = 0; q < rule.Size(); ++q) SimplexPoint(dim, X, rule.Point(q), &x[q * dim]);
+}
+static void RulePoints(PetscInt dim, const PetscReal *X, const Quadrature &rule, PetscReal *x)
+{
+  if (dim == 2) RulePointsD<2>(X, rule, x);
+  else RulePointsD<3>(X, rule, x);
 }
 
 // The load of a cell (CellLoad) from f's values fx at the points x of the load rule (System::cellRule), the
 // oscillation only when asked for (else 0); range, where given, records the values for the underflow check.
 // A constant f needs neither fx nor x.
-static void ComputeCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, const PetscReal *fx, const PetscReal *x, std::vector<PetscReal> &work, CellLoad &load, bool oscillation, LoadRange *range, std::string &error)
+template <PetscInt dim>
+static void ComputeCellLoadD(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, const PetscReal *fx, const PetscReal *x, std::vector<PetscReal> &work, CellLoad &load, bool oscillation, LoadRange *range, std::string &error)
 {
-  const PetscInt    dim  = space.dim;
   const Quadrature &rule = sys.cellRule;
   load.oscillation       = 0;
   if (problem.f->IsConstant()) { // one value, no parser, no oscillation
@@ -133,7 +139,7 @@ static void ComputeCellLoad(const Space &space, const Problem &problem, const Sy
   if (orule.Size() != rule.Size()) {
     work.resize(orule.Size() * (dim + 1));
     PetscReal *ox = &work[orule.Size()];
-    RulePoints(dim, X, orule, ox);
+    RulePointsD<dim>(X, orule, ox);
     problem.f->SetCellSet(space.CellSet(c));
     problem.f->EvalBatch(orule.Size(), ox, dim, nullptr, work.data(), error);
     mean = 0;
@@ -144,6 +150,11 @@ static void ComputeCellLoad(const Space &space, const Problem &problem, const Sy
   for (PetscInt q = 0; q < orule.Size(); ++q) dev2 += orule.weights[q] * (fo[q] - mean) * (fo[q] - mean);
   // Poincare on a convex cell: ||w - w_T||_T <= h_T / pi ||grad w||_T.
   load.oscillation = SimplexDiameter(dim, X) / M_PI * std::sqrt(dev2 * g.volume / sys.Kappa(c));
+}
+static void ComputeCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, const PetscReal *fx, const PetscReal *x, std::vector<PetscReal> &work, CellLoad &load, bool oscillation, LoadRange *range, std::string &error)
+{
+  if (space.dim == 2) ComputeCellLoadD<2>(space, problem, sys, c, X, g, fx, x, work, load, oscillation, range, error);
+  else ComputeCellLoadD<3>(space, problem, sys, c, X, g, fx, x, work, load, oscillation, range, error);
 }
 
 void EvaluateCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, std::string &error)
@@ -165,14 +176,15 @@ struct LoadBlock {
   static constexpr PetscInt kCells = 64;
   std::vector<PetscReal>    x, fx; // point q of block cell i at x[(i * nq + q) * dim], its value at fx[i * nq + q]
   std::vector<PetscInt>     sets;
+  template <PetscInt dim>
   void Evaluate(const Space &space, const Problem &problem, const Quadrature &rule, PetscInt c0, PetscInt m, const Space::Coords *X, std::string &error)
   {
-    const PetscInt nq = rule.Size(), dim = space.dim;
+    const PetscInt nq = rule.Size();
     x.resize(kCells * nq * dim);
     fx.resize(kCells * nq);
     sets.resize(kCells * nq);
     for (PetscInt i = 0; i < m; ++i) {
-      RulePoints(dim, X[i], rule, &x[i * nq * dim]);
+      RulePointsD<dim>(X[i], rule, &x[i * nq * dim]);
       std::fill_n(&sets[i * nq], nq, space.CellSet(c0 + i));
     }
     problem.f->EvalBatch(m * nq, x.data(), dim, sets.data(), fx.data(), error);
@@ -208,11 +220,11 @@ static PetscErrorCode AssembleCellsD(const Space &space, const Problem &problem,
       PetscCall(fill.Add(space.Dofs(c0 + i), Ke));
     }
     if (zeroLoad) continue;
-    if (evaluate) block.Evaluate(space, problem, sys.cellRule, c0, m, X, error);
+    if (evaluate) block.Evaluate<dim>(space, problem, sys.cellRule, c0, m, X, error);
     for (PetscInt i = 0; i < m; ++i) {
       const PetscInt c = c0 + i;
       CellLoad       cl;
-      ComputeCellLoad(space, problem, sys, c, X[i], g[i], evaluate ? &block.fx[i * nq] : nullptr, evaluate ? &block.x[i * nq * dim] : nullptr, work, cl, keepLoads, &range, error);
+      ComputeCellLoadD<dim>(space, problem, sys, c, X[i], g[i], evaluate ? &block.fx[i * nq] : nullptr, evaluate ? &block.x[i * nq * dim] : nullptr, work, cl, keepLoads, &range, error);
       // b_i = int_T f phi_i = sum_k moment_k phi_i(X_k): phi_i is affine.
       for (PetscInt j = 0; j < nb; ++j) {
         PetscReal bj = 0;
