@@ -176,7 +176,9 @@ private:
 
 } // namespace
 
-PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const std::vector<PetscInt> &parent, Mat *P)
+// (The dimension a template parameter, as in the other cell loops: the loops of the geometry unroll.)
+template <PetscInt dim>
+static PetscErrorCode ProlongationMatrixD(const Space &coarse, const Space &fine, const std::vector<PetscInt> &parent, Mat *P)
 {
   MPI_Comm        comm = PetscObjectComm((PetscObject)fine.dm);
   const PetscInt *gf, *gc;
@@ -204,10 +206,10 @@ PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const 
   }
   PetscCall(ISLocalToGlobalMappingGetIndices(fine.ltog, &gf));
   PetscCall(ISLocalToGlobalMappingGetIndices(coarse.ltog, &gc));
-  const PetscInt dim = coarse.dim, nb = coarse.Nb();
+  constexpr PetscInt nb = dim + 1;
   PetscReal      lambda[4], mu[4], x[3];
   Space::Coords  XH, Xh;
-  CellGeometry   g;
+  CellGeometry   g{}; // set at the first parent (pc != last); zeroed for the compiler's sake
   PetscInt       last = -1; // the parent whose geometry g is: the children of a cell are consecutive
   for (PetscInt c = 0; c < fine.NumCells(); ++c) {
     const PetscInt pc = parent[c];
@@ -217,11 +219,11 @@ PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const 
       if (fine.kindLocal[dof] == kDirichlet) continue;
       if (once && (row < 0 || rows.IsSet(row))) continue;
       if (pc != last) {
-        XH = coarse.X(pc);
-        ComputeCellGeometry(dim, XH, g);
+        XH = coarse.XD<dim>(pc);
+        ComputeCellGeometryD<dim>(XH, g);
         last = pc;
       }
-      if (!haveCell) Xh = fine.X(c), haveCell = true;
+      if (!haveCell) Xh = fine.XD<dim>(c), haveCell = true;
       DofLambda(fine.element, dim, i, mu);
       SimplexPoint(dim, Xh, mu, x);
       Barycentric(dim, g, XH, x, lambda);
@@ -247,6 +249,10 @@ PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const 
   }
   PetscCall(PetscLogEventEnd(event, 0, 0, 0, 0));
   PetscFunctionReturn(0);
+}
+PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const std::vector<PetscInt> &parent, Mat *P)
+{
+  return coarse.dim == 2 ? ProlongationMatrixD<2>(coarse, fine, parent, P) : ProlongationMatrixD<3>(coarse, fine, parent, P);
 }
 
 PetscErrorCode P1ToCRMatrix(const Space &p1, const Space &cr, Mat *Q)
