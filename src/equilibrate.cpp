@@ -238,7 +238,7 @@ void CellDataOf(const Space &space, const System &sys, const PetscScalar *u, Pet
   rec.volume          = g.volume;
   const PetscReal kap = sys.Kappa(c);
   PetscReal       G[3];
-  space.GradP1<dim>(c, u, g, G);
+  space.GradD<dim>(c, u, g, G);
   RT0MassDiagonal<dim>(X, g.volume, rec.weight);
   if (Stretched<dim>(rec.weight, g.volume)) CoupleCell<dim>(X, g.volume, kap, rec, extra);
   for (PetscInt j = 0; j < nb; ++j) rec.weight[j] /= kap;
@@ -871,7 +871,7 @@ void FluxTermsD(const Space &space, const System &sys, const PetscScalar *u, Rec
     PrefetchVertices(space, c + kCellsAhead, u);
     const Space::Coords X = space.XD<dim>(c);
     ComputeCellGeometryD<dim>(X, g);
-    space.GradP1<dim>(c, u, g, G);
+    space.GradD<dim>(c, u, g, G);
     const PetscReal kap = sys.Kappa(c);
     for (PetscInt d = 0; d < dim; ++d) kg[d] = kap * G[d];
     r.fluxTerm[c] = CellFlux(dim, X, g, &r.flux[c * nb], kap).Term(dim, kg);

@@ -141,16 +141,17 @@ void CellTermsP1(const Space &space, const Reconstruction &r, std::vector<PetscR
 // The cell terms F_T^2, N_T^2 and osc_T^2 into the indicators and the local sums: F^2, N^2, osc^2,
 // sum_T (F_T + osc_T)^2, sum_T (Fh_T + osc_T)^2 and Fh^2 with Fh_T = ||kappa^{-1/2}(kappa grad u_h - sigma)||_T.
 // With vertexSums (CR), also the per-vertex sums ImproveCompanion starts from.
-void CellTerms(const Space &space, const System &sys, const Reconstruction &r, const PetscScalar *a, std::vector<PetscReal> &cellEta2, PetscReal *sums, std::vector<PetscReal> *vertexSums)
+// (The dimension a template parameter, as in the other cell loops: their short loops unroll.)
+template <PetscInt dim>
+void CellTermsD(const Space &space, const System &sys, const Reconstruction &r, const PetscScalar *a, std::vector<PetscReal> &cellEta2, PetscReal *sums, std::vector<PetscReal> *vertexSums)
 {
-  const PetscInt dim = space.dim, nb = space.Nb();
-  if (!r.fluxTerm.empty()) return CellTermsP1(space, r, cellEta2, sums);
+  constexpr PetscInt nb = dim + 1;
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
-    const Space::Coords X = space.X(c);
+    const Space::Coords X = space.XD<dim>(c);
     CellGeometry        g;
     PetscReal           gu[3], gv[3] = {0, 0, 0}, w[3], wh[3], n2 = 0;
-    ComputeCellGeometry(dim, X, g);
-    space.Grad(c, a, g, gu);
+    ComputeCellGeometryD<dim>(X, g);
+    space.GradD<dim>(c, a, g, gu);
     const PetscReal kappa = sys.Kappa(c);
     for (PetscInt k = 0; k < nb; ++k) {
       const PetscReal vk = r.companion.empty() ? PetscRealPart(a[space.Dofs(c)[k]]) : r.companion[space.cellVert[c * nb + k]];
@@ -174,6 +175,12 @@ void CellTerms(const Space &space, const System &sys, const Reconstruction &r, c
     const PetscReal fo = std::sqrt(f2) + r.oscillation[c], fho = std::sqrt(fh2) + r.oscillation[c];
     sums[kF2] += f2, sums[kN2] += n2, sums[kOsc2] += o2, sums[kFOsc2] += fo * fo, sums[kFhOsc2] += fho * fho, sums[kFh2] += fh2;
   }
+}
+void CellTerms(const Space &space, const System &sys, const Reconstruction &r, const PetscScalar *a, std::vector<PetscReal> &cellEta2, PetscReal *sums, std::vector<PetscReal> *vertexSums)
+{
+  if (!r.fluxTerm.empty()) CellTermsP1(space, r, cellEta2, sums);
+  else if (space.dim == 2) CellTermsD<2>(space, sys, r, a, cellEta2, sums, vertexSums);
+  else CellTermsD<3>(space, sys, r, a, cellEta2, sums, vertexSums);
 }
 
 // The terms the bounds are made of (global): N = |||u_h - v|||, F = ||kappa^{-1/2}(kappa grad v - sigma)||,

@@ -41,18 +41,19 @@ PetscErrorCode SumOverRanks(const Space &space, PetscInt width, std::vector<Pets
 // values have in the nonconformity |||u_h - v|||: across a kappa jump of 1e6 the plain average put v
 // on the side where kappa is small and the estimate 30 times above the error (stiff-layers-across), the
 // weighted one 2 times; on meshes of equal cells and constant kappa the two are the same.
-PetscErrorCode FluxesAndVertexSums(const Space &space, const Problem &problem, const System &sys, const PetscScalar *a, Reconstruction &r, std::vector<PetscReal> &vdata, std::string &error)
+// (The dimension a template parameter, as in the other cell loops: their short loops unroll.)
+template <PetscInt dim>
+void FluxesAndVertexSumsD(const Space &space, const Problem &problem, const System &sys, const PetscScalar *a, Reconstruction &r, std::vector<PetscReal> &vdata, std::string &error)
 {
-  const PetscInt         dim = space.dim, nb = space.Nb();
+  constexpr PetscInt     nb = dim + 1;
   std::vector<PetscReal> work;
-  PetscFunctionBeginUser;
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
-    const Space::Coords X = space.X(c);
+    const Space::Coords X = space.XD<dim>(c);
     CellGeometry        g;
     CellLoad            load;
     PetscReal           grad[3], S = 0;
-    ComputeCellGeometry(dim, X, g);
-    space.Grad(c, a, g, grad);
+    ComputeCellGeometryD<dim>(X, g);
+    space.GradD<dim>(c, a, g, grad);
     GetCellLoad(space, problem, sys, c, X, g, work, load, error);
     r.oscillation[c]      = load.oscillation;
     const PetscReal total = load.Total(dim), kv = sys.Kappa(c) * g.volume;
@@ -69,7 +70,11 @@ PetscErrorCode FluxesAndVertexSums(const Space &space, const Problem &problem, c
       v[1] += kv;
     }
   }
-  PetscFunctionReturn(0);
+}
+void FluxesAndVertexSums(const Space &space, const Problem &problem, const System &sys, const PetscScalar *a, Reconstruction &r, std::vector<PetscReal> &vdata, std::string &error)
+{
+  if (space.dim == 2) FluxesAndVertexSumsD<2>(space, problem, sys, a, r, vdata, error);
+  else FluxesAndVertexSumsD<3>(space, problem, sys, a, r, vdata, error);
 }
 
 // The cells' gradients of the barycentric coordinates scaled by (kappa_T |T|)^{1/2}, (d+1) d values a
@@ -316,7 +321,7 @@ PetscErrorCode ReconstructCR(const Space &space, const Problem &problem, const S
   PetscCall(DMGetLocalVector(space.dm, &loc));
   PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, loc));
   PetscCall(VecGetArrayRead(loc, &a));
-  PetscCall(FluxesAndVertexSums(space, problem, sys, a, r, vdata, error));
+  FluxesAndVertexSums(space, problem, sys, a, r, vdata, error);
   PetscCall(VecRestoreArrayRead(loc, &a));
   PetscCall(DMRestoreLocalVector(space.dm, &loc));
 

@@ -194,7 +194,7 @@ struct Space {
   const PetscInt *Dofs(PetscInt c) const { return &(element == Element::P1 ? cellVert : cellDof)[c * (dim + 1)]; }
   PetscInt        Vertex(PetscInt c, PetscInt k) const { return vStart + cellVert[c * (dim + 1) + k]; } // mesh point
   Coords          X(PetscInt c) const { return dim == 2 ? XD<2>(c) : XD<3>(c); }
-  // X(c) and, for P1, Grad with the dimension a constant: in the cell loops that know it, their loops unroll.
+  // X(c) and Grad with the dimension a constant: in the cell loops that know it, their loops unroll.
   template <PetscInt D>
   Coords XD(PetscInt c) const
   {
@@ -204,11 +204,12 @@ struct Space {
     return X;
   }
   template <PetscInt D>
-  void GradP1(PetscInt c, const PetscScalar *a, const CellGeometry &g, PetscReal *grad) const
+  void GradD(PetscInt c, const PetscScalar *a, const CellGeometry &g, PetscReal *grad) const
   {
+    const PetscReal b = element == Element::P1 ? 1.0 : -(PetscReal)D; // grad phi_i = b grad lambda_i
     for (PetscInt d = 0; d < D; ++d) grad[d] = 0;
     for (PetscInt i = 0; i <= D; ++i)
-      for (PetscInt d = 0; d < D; ++d) grad[d] += PetscRealPart(a[cellVert[c * (D + 1) + i]]) * g.gradLambda[i][d];
+      for (PetscInt d = 0; d < D; ++d) grad[d] += PetscRealPart(a[Dofs(c)[i]]) * (b * g.gradLambda[i][d]);
   }
   PetscReal BasisValue(PetscInt, PetscInt i, const PetscReal *lambda) const
   {
@@ -227,15 +228,7 @@ struct Space {
     for (PetscInt i = 0; i < Nb(); ++i) v += PetscRealPart(a[Dofs(c)[i]]) * BasisValue(c, i, lambda);
     return v;
   }
-  void Grad(PetscInt c, const PetscScalar *a, const CellGeometry &g, PetscReal *grad) const
-  {
-    PetscReal gi[3];
-    for (PetscInt d = 0; d < dim; ++d) grad[d] = 0;
-    for (PetscInt i = 0; i < Nb(); ++i) {
-      BasisGrad(c, i, g, gi);
-      for (PetscInt d = 0; d < dim; ++d) grad[d] += PetscRealPart(a[Dofs(c)[i]]) * gi[d];
-    }
-  }
+  void Grad(PetscInt c, const PetscScalar *a, const CellGeometry &g, PetscReal *grad) const { dim == 2 ? GradD<2>(c, a, g, grad) : GradD<3>(c, a, g, grad); }
   // Physical point of barycentric coordinates lambda in cell c.
   void Point(PetscInt c, const PetscReal *lambda, PetscReal *x) const;
   // Where basis function i of cell c is 1: vertex i (P1) or the centroid of the face opposite it (CR).
