@@ -25,15 +25,16 @@ struct ExactBlock {
   std::vector<PetscReal>    x, u, grad; // point q of block cell i: x[(i * nq + q) * dim], u[i * nq + q], grad[(i * nq + q) * dim]
   std::vector<PetscInt>     sets;
   Space::Coords             X[kCells];  // the vertices of block cell i
+  template <PetscInt dim>
   void Evaluate(const Space &space, const Problem &problem, const Quadrature &rule, PetscInt c0, PetscInt m, std::string &error)
   {
-    const PetscInt nq = rule.Size(), dim = space.dim, n = m * nq;
+    const PetscInt nq = rule.Size(), n = m * nq;
     x.resize(kCells * nq * dim);
     u.resize(kCells * nq);
     grad.resize(kCells * nq * dim);
     sets.resize(kCells * nq);
     for (PetscInt i = 0; i < m; ++i) {
-      X[i] = space.X(c0 + i);
+      X[i] = space.XD<dim>(c0 + i);
       for (PetscInt q = 0; q < nq; ++q) SimplexPoint(dim, X[i], rule.Point(q), &x[(i * nq + q) * dim]);
       std::fill_n(&sets[i * nq], nq, space.CellSet(c0 + i));
     }
@@ -41,32 +42,24 @@ struct ExactBlock {
     problem.exactGrad->EvalBatch(n, x.data(), dim, sets.data(), grad.data(), error);
   }
 };
-} // namespace
 
-PetscErrorCode ErrorAgainstExact(const Space &space, const Problem &problem, const System &sys, Vec u, PetscInt degree, ErrorNorms &e)
+// The sums of ErrorAgainstExact: int (u - u_h)^2, int |grad(u - u_h)|^2 and with kappa (the dimension a
+// template parameter, as in the other cell loops).
+template <PetscInt dim>
+void ExactSums(const Space &space, const Problem &problem, const System &sys, const PetscScalar *a, const Quadrature &rule, PetscReal *sums, std::string &error)
 {
-  Vec                loc;
-  const PetscScalar *a;
-  std::string        error;
-  const Quadrature   rule = SimplexQuadrature(space.dim, degree);
-  PetscReal          sums[3] = {0, 0, 0};
-  ExactBlock         block;
-  PetscFunctionBeginUser;
-  PetscCall(StagePush(Stage::Error));
-  PetscCall(DMGetLocalVector(space.dm, &loc));
-  PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, loc));
-  PetscCall(VecGetArrayRead(loc, &a));
-  const PetscInt dim = space.dim, nq = rule.Size();
+  const PetscInt nq = rule.Size();
+  ExactBlock     block;
   for (PetscInt c0 = 0; c0 < space.NumCells(); c0 += ExactBlock::kCells) {
     const PetscInt m = std::min(ExactBlock::kCells, space.NumCells() - c0);
-    block.Evaluate(space, problem, rule, c0, m, error);
+    block.Evaluate<dim>(space, problem, rule, c0, m, error);
     for (PetscInt i = 0; i < m; ++i) {
       const PetscInt c = c0 + i;
       CellGeometry   g;
-      ComputeCellGeometry(dim, block.X[i], g);
+      ComputeCellGeometryD<dim>(block.X[i], g);
       // u_h is affine on the cell: its gradient is constant.
       PetscReal gradh[3];
-      space.Grad(c, a, g, gradh);
+      space.GradD<dim>(c, a, g, gradh);
       PetscReal semi2 = 0;
       for (PetscInt q = 0; q < nq; ++q) {
         const PetscReal  uh = space.Value(c, a, rule.Point(q)), ue = block.u[i * nq + q];
@@ -80,6 +73,23 @@ PetscErrorCode ErrorAgainstExact(const Space &space, const Problem &problem, con
       sums[2] += sys.Kappa(c) * semi2;
     }
   }
+}
+} // namespace
+
+PetscErrorCode ErrorAgainstExact(const Space &space, const Problem &problem, const System &sys, Vec u, PetscInt degree, ErrorNorms &e)
+{
+  Vec                loc;
+  const PetscScalar *a;
+  std::string        error;
+  const Quadrature   rule = SimplexQuadrature(space.dim, degree);
+  PetscReal          sums[3] = {0, 0, 0};
+  PetscFunctionBeginUser;
+  PetscCall(StagePush(Stage::Error));
+  PetscCall(DMGetLocalVector(space.dm, &loc));
+  PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, loc));
+  PetscCall(VecGetArrayRead(loc, &a));
+  if (space.dim == 2) ExactSums<2>(space, problem, sys, a, rule, sums, error);
+  else ExactSums<3>(space, problem, sys, a, rule, sums, error);
   PetscCall(VecRestoreArrayRead(loc, &a));
   PetscCall(DMRestoreLocalVector(space.dm, &loc));
   MPI_Comm comm = PetscObjectComm((PetscObject)space.dm);
@@ -94,29 +104,54 @@ PetscErrorCode ErrorAgainstExact(const Space &space, const Problem &problem, con
 }
 
 // The discrete function on one cell, evaluated at physical points (of that cell or, for the reference,
-// of one of its sub-cells).
+// of one of its sub-cells). The dimension is a template parameter, as in the other cell loops.
 namespace {
+template <PetscInt dim>
 struct CellFunction {
-  const Space       *space;
-  const PetscScalar *a;
-  PetscInt           c;
-  CellGeometry       g;
-  PetscReal          grad[3];
+  const Space       *space = nullptr;
+  const PetscScalar *a     = nullptr;
+  PetscInt           c     = -1; // none yet
+  Space::Coords      X{};
+  CellGeometry       g{};
+  PetscReal          grad[3] = {0, 0, 0};
   void Init(const Space &s, const PetscScalar *array, PetscInt cell)
   {
     space = &s;
     a     = array;
     c     = cell;
-    ComputeCellGeometry(s.dim, s.X(c), g);
-    s.Grad(c, a, g, grad);
+    X     = s.XD<dim>(c);
+    ComputeCellGeometryD<dim>(X, g);
+    s.GradD<dim>(c, a, g, grad);
   }
   PetscReal Value(const PetscReal *x) const
   {
     PetscReal lambda[4];
-    Barycentric(space->dim, g, space->X(c), x, lambda);
+    Barycentric(dim, g, X, x, lambda);
     return space->Value(c, a, lambda);
   }
 };
+
+// The sums of ErrorAgainstReference: int (uH - uh)^2, int |grad(uH - uh)|^2 and with kappa. The fine cells
+// of one coarse cell come one after the other: its function is set up once for all of them.
+template <PetscInt dim>
+void ReferenceSums(const Space &coarse, const PetscScalar *aH, const Space &fine, const System &fineSys, const PetscScalar *ah, const std::vector<PetscInt> &parent, const Quadrature &rule, PetscReal *sums)
+{
+  CellFunction<dim> fH, fh;
+  for (PetscInt c = 0; c < fine.NumCells(); ++c) {
+    fh.Init(fine, ah, c);
+    if (parent[c] != fH.c) fH.Init(coarse, aH, parent[c]);
+    PetscReal d2 = 0;
+    for (PetscInt d = 0; d < dim; ++d) d2 += (fH.grad[d] - fh.grad[d]) * (fH.grad[d] - fh.grad[d]);
+    sums[1] += d2 * fh.g.volume;
+    sums[2] += fineSys.Kappa(c) * d2 * fh.g.volume;
+    for (PetscInt q = 0; q < rule.Size(); ++q) {
+      PetscReal x[3];
+      SimplexPoint(dim, fh.X, rule.Point(q), x);
+      const PetscReal diff = fH.Value(x) - fh.Value(x);
+      sums[0] += rule.weights[q] * fh.g.volume * diff * diff;
+    }
+  }
+}
 } // namespace
 
 PetscErrorCode ErrorAgainstReference(const Space &coarse, Vec uH, const Space &fine, const System &fineSys, Vec uh, const std::vector<PetscInt> &parent, ErrorNorms &e)
@@ -134,21 +169,8 @@ PetscErrorCode ErrorAgainstReference(const Space &coarse, Vec uH, const Space &f
   PetscCall(DMGlobalToLocal(fine.dm, uh, INSERT_VALUES, loch));
   PetscCall(VecGetArrayRead(locH, &aH));
   PetscCall(VecGetArrayRead(loch, &ah));
-  CellFunction fH, fh;
-  for (PetscInt c = 0; c < fine.NumCells(); ++c) {
-    fh.Init(fine, ah, c);
-    fH.Init(coarse, aH, parent[c]);
-    PetscReal d2 = 0;
-    for (PetscInt d = 0; d < fine.dim; ++d) d2 += (fH.grad[d] - fh.grad[d]) * (fH.grad[d] - fh.grad[d]);
-    sums[1] += d2 * fh.g.volume;
-    sums[2] += fineSys.Kappa(c) * d2 * fh.g.volume;
-    for (PetscInt q = 0; q < rule.Size(); ++q) {
-      PetscReal x[3];
-      fine.Point(c, rule.Point(q), x);
-      const PetscReal diff = fH.Value(x) - fh.Value(x);
-      sums[0] += rule.weights[q] * fh.g.volume * diff * diff;
-    }
-  }
+  if (fine.dim == 2) ReferenceSums<2>(coarse, aH, fine, fineSys, ah, parent, rule, sums);
+  else ReferenceSums<3>(coarse, aH, fine, fineSys, ah, parent, rule, sums);
   PetscCall(VecRestoreArrayRead(locH, &aH));
   PetscCall(VecRestoreArrayRead(loch, &ah));
   PetscCall(DMRestoreLocalVector(coarse.dm, &locH));
