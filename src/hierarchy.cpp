@@ -291,6 +291,35 @@ PetscErrorCode P1ToCRMatrix(const Space &p1, const Space &cr, Mat *Q)
 }
 
 
+// RecordP1Transfer's cell loop, the dimension a template parameter (as in the other cell loops).
+template <PetscInt dim>
+static void RecordCells(const Space &coarse, const MeshCells &cells, const std::vector<PetscInt> &parent, const PetscInt *gc, std::vector<PetscReal> &data)
+{
+  constexpr PetscInt nb = dim + 1, stride = nb * (nb + 1);
+  PetscReal          lambda[4];
+  Space::Coords      XH;
+  CellGeometry       g{}; // set at the first parent (pc != last); zeroed for the compiler's sake
+  PetscInt           last = -1; // the parent whose geometry g is: the children of a cell are consecutive
+  for (PetscInt c = 0; c < cells.NumCells(); ++c) {
+    const PetscInt      pc  = parent[c];
+    PetscReal          *rec = &data[c * stride];
+    const Space::Coords Xh  = cells.X(c);
+    if (pc != last) {
+      XH = coarse.XD<dim>(pc);
+      ComputeCellGeometryD<dim>(XH, g);
+      last = pc;
+    }
+    for (PetscInt j = 0; j < nb; ++j) {
+      const PetscInt J = coarse.Dofs(pc)[j];
+      rec[j]           = coarse.kindLocal[J] == kDirichlet ? -1 : gc[J];
+    }
+    for (PetscInt k = 0; k < nb; ++k) {
+      Barycentric(dim, g, XH, &Xh.x[k * dim], lambda);
+      for (PetscInt j = 0; j < nb; ++j) rec[nb + k * nb + j] = std::fabs(lambda[j]) >= 1e-12 ? lambda[j] : 0;
+    }
+  }
+}
+
 PetscErrorCode RecordP1Transfer(const Space &coarse, DM fine, const std::vector<PetscInt> &parent, TransferRecord &r)
 {
   MeshCells       cells;
@@ -307,28 +336,8 @@ PetscErrorCode RecordP1Transfer(const Space &coarse, DM fine, const std::vector<
   PetscCall(ISLocalToGlobalMappingGetIndices(coarse.ltog, &gc));
   r.cells.nb = stride / 2;
   r.cells.data.resize(n * stride);
-  PetscReal     lambda[4];
-  Space::Coords XH;
-  CellGeometry  g;
-  PetscInt      last = -1; // the parent whose geometry g is: the children of a cell are consecutive
-  for (PetscInt c = 0; c < n; ++c) {
-    const PetscInt      pc  = parent[c];
-    PetscReal          *rec = &r.cells.data[c * stride];
-    const Space::Coords Xh  = cells.X(c);
-    if (pc != last) {
-      XH = coarse.X(pc);
-      ComputeCellGeometry(dim, XH, g);
-      last = pc;
-    }
-    for (PetscInt j = 0; j < nb; ++j) {
-      const PetscInt J = coarse.Dofs(pc)[j];
-      rec[j]           = coarse.kindLocal[J] == kDirichlet ? -1 : gc[J];
-    }
-    for (PetscInt k = 0; k < nb; ++k) {
-      Barycentric(dim, g, XH, &Xh.x[k * dim], lambda);
-      for (PetscInt j = 0; j < nb; ++j) rec[nb + k * nb + j] = std::fabs(lambda[j]) >= 1e-12 ? lambda[j] : 0;
-    }
-  }
+  if (dim == 2) RecordCells<2>(coarse, cells, parent, gc, r.cells.data);
+  else RecordCells<3>(coarse, cells, parent, gc, r.cells.data);
   PetscCall(ISLocalToGlobalMappingRestoreIndices(coarse.ltog, &gc));
   r.coarseOwned  = coarse.numOwned;
   r.coarseGlobal = coarse.numGlobal;
