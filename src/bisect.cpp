@@ -44,7 +44,7 @@
 #include "signorini/mesh.h"
 #include "signorini/refine.h"
 
-#include <petsc/private/dmpleximpl.h>  // DM_Plex: the cones, supports and depth state, see BuildPlex
+#include <petsc/private/dmpleximpl.h>  // DM_Plex: the cones and supports, see BuildPlex
 #include <petsc/private/sectionimpl.h> // the sizes of the cones and supports, see BuildPlex
 
 #include <algorithm>
@@ -720,24 +720,11 @@ PetscErrorCode BuildPlex(DM dm, const Fine &f)
       const PetscInt q = mesh->cones[i];
       mesh->supports[ss->atlasOff[q] + count[q]++] = p;
     }
-  // Depth strata, as DMPlexStratify makes them (a stride set per depth; on every rank every depth).
-  DMLabel        depth;
-  const PetscInt range[4][2] = {{f.Vertex(0), f.Vertex(f.nv)}, {f.Edge(0), end}, {f.Tri(0), f.Tri(f.nt)}, {0, f.nc}};
-  PetscCall(DMCreateLabel(dm, "depth"));
-  PetscCall(DMPlexGetDepthLabel(dm, &depth));
-  for (PetscInt d = 0; d <= f.dim; ++d) {
-    const PetscInt *r = range[d == f.dim ? 3 : d];
-    if (r[0] >= r[1]) continue;
-    IS is;
-    PetscCall(ISCreateStride(PETSC_COMM_SELF, r[1] - r[0], r[0], 1, &is));
-    PetscCall(DMLabelSetStratumIS(depth, d, is));
-    PetscCall(ISDestroy(&is));
-  }
-  PetscInt numValues, maxValues = 0;
-  PetscCall(DMLabelGetNumValues(depth, &numValues));
-  PetscCallMPI(MPI_Allreduce(&numValues, &maxValues, 1, MPIU_INT, MPI_MAX, PetscObjectComm((PetscObject)dm)));
-  for (PetscInt v = numValues; v < maxValues; ++v) PetscCall(DMLabelAddStratum(depth, v));
-  PetscCall(PetscObjectStateGet((PetscObject)depth, &mesh->depthState));
+  // Depth strata, as DMPlexStratify makes them: vertices, edges, triangles (3D), cells.
+  std::vector<std::array<PetscInt, 2>> depthRanges = {{f.Vertex(0), f.Vertex(f.nv)}, {f.Edge(0), end}};
+  if (f.dim == 3) depthRanges.push_back({f.Tri(0), f.Tri(f.nt)});
+  depthRanges.push_back({0, f.nc});
+  PetscCall(SetDepthStrata(dm, depthRanges));
   PetscFunctionReturn(0);
 }
 

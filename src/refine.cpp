@@ -1,6 +1,9 @@
 #include "signorini/refine.h"
 #include "signorini/mesh.h"
 
+#include <petsc/private/dmpleximpl.h>  // DM_Plex: the cones, supports and depth state, see SymmetrizeCones
+#include <petsc/private/sectionimpl.h> // the sizes of the supports, see SymmetrizeCones
+
 #include <algorithm>
 #include <array>
 
@@ -379,6 +382,56 @@ PetscErrorCode SetCellTypeStrata(DM dm, const std::vector<CellTypeStratum> &stra
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode SetDepthStrata(DM dm, const std::vector<std::array<PetscInt, 2>> &ranges)
+{
+  DMLabel depth;
+  PetscFunctionBeginUser;
+  PetscCall(DMCreateLabel(dm, "depth"));
+  PetscCall(DMPlexGetDepthLabel(dm, &depth));
+  for (PetscInt d = 0; d < (PetscInt)ranges.size(); ++d) {
+    const std::array<PetscInt, 2> &r = ranges[d];
+    if (r[0] >= r[1]) continue;
+    IS is;
+    PetscCall(ISCreateStride(PETSC_COMM_SELF, r[1] - r[0], r[0], 1, &is));
+    PetscCall(DMLabelSetStratumIS(depth, d, is));
+    PetscCall(ISDestroy(&is));
+  }
+  PetscInt numValues, maxValues = 0;
+  PetscCall(DMLabelGetNumValues(depth, &numValues));
+  PetscCallMPI(MPI_Allreduce(&numValues, &maxValues, 1, MPIU_INT, MPI_MAX, PetscObjectComm((PetscObject)dm)));
+  for (PetscInt v = numValues; v < maxValues; ++v) PetscCall(DMLabelAddStratum(depth, v));
+  PetscCall(PetscObjectStateGet((PetscObject)depth, &((DM_Plex *)dm->data)->depthState));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SymmetrizeCones(DM dm)
+{
+  DM_Plex *mesh = (DM_Plex *)dm->data;
+  PetscInt pStart, pEnd, size;
+  PetscFunctionBeginUser;
+  PetscCheck(!mesh->supports, PetscObjectComm((PetscObject)dm), PETSC_ERR_ARG_WRONGSTATE, "SymmetrizeCones: the supports are set already");
+  PetscCall(DMPlexGetChart(dm, &pStart, &pEnd));
+  PetscSection   cs = mesh->coneSection, ss = mesh->supportSection;
+  const PetscInt n  = pEnd - pStart;
+  PetscCheck(cs->pStart == pStart && ss->pStart == pStart && ss->pEnd == pEnd, PETSC_COMM_SELF, PETSC_ERR_PLIB, "SymmetrizeCones: unexpected sections");
+  // Each point once in the support of every point in its cone; the sizes count up again as places fill.
+  PetscInt *count = ss->atlasDof;
+  std::fill(count, count + n, 0);
+  for (PetscInt p = 0; p < n; ++p)
+    for (PetscInt i = cs->atlasOff[p]; i < cs->atlasOff[p] + cs->atlasDof[p]; ++i) ++count[mesh->cones[i] - pStart];
+  ss->maxDof = PETSC_MIN_INT; // recomputed when asked for (see PetscSectionInvalidateMaxDof_Internal)
+  PetscCall(PetscSectionSetUp(ss));
+  PetscCall(PetscSectionGetStorageSize(ss, &size));
+  PetscCall(PetscMalloc1(size, &mesh->supports));
+  std::fill(count, count + n, 0);
+  for (PetscInt p = 0; p < n; ++p)
+    for (PetscInt i = cs->atlasOff[p]; i < cs->atlasOff[p] + cs->atlasDof[p]; ++i) {
+      const PetscInt q = mesh->cones[i] - pStart;
+      mesh->supports[ss->atlasOff[q] + count[q]++] = p + pStart;
+    }
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode SetVertexCoordinates(DM dm, PetscInt cdim, PetscInt vStart, PetscInt n, const std::vector<PetscReal> &x)
 {
   PetscSection sec;
@@ -484,9 +537,13 @@ PetscErrorCode RefineSimplices(DM coarse, DM *fine, std::vector<PetscInt> *paren
   PetscCall(SetEdgeHalves(coarse, dm, n));
   PetscCall(SplitTriangles(coarse, dm, n));
   if (n.dim == 3) PetscCall(SplitTetrahedra(coarse, dm, n, x));
-  PetscCall(DMPlexSymmetrize(dm));
+  PetscCall(SymmetrizeCones(dm));
   PetscCall(SetCellTypes(dm, n));
-  PetscCall(DMPlexStratify(dm));
+  // depth 0 the vertices, 1 the edges, 2 the faces (3D), dim the cells (FineNumbering's strata)
+  std::vector<std::array<PetscInt, 2>> depthRanges = {{n.VertexStart(), n.VertexStart() + n.nV + n.nE}, {n.EdgeStart(), n.End()}};
+  if (n.dim == 3) depthRanges.push_back({n.FaceStart(), n.EdgeStart()});
+  depthRanges.push_back({0, n.VertexStart()});
+  PetscCall(SetDepthStrata(dm, depthRanges));
   PetscCall(SetPointSF(coarse, dm, n));
   PetscCall(RefineLabels(coarse, dm, n));
   PetscInt cdim;

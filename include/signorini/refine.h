@@ -17,6 +17,7 @@
 
 #include <petscdmplex.h>
 
+#include <array>
 #include <functional>
 
 namespace signorini {
@@ -34,6 +35,13 @@ struct CellTypeStratum {
   PetscInt       start, end;
 };
 PetscErrorCode SetCellTypeStrata(DM dm, const std::vector<CellTypeStratum> &strata);
+// The depth label as DMPlexStratify makes it for a chart whose points of depth d are the contiguous range
+// ranges[d] = {start, end} (d = 0 .. dim): one stride stratum a depth, every depth on every rank
+// (collective), and the plex's depth state. Without DMPlexStratify's calls per point and per support.
+PetscErrorCode SetDepthStrata(DM dm, const std::vector<std::array<PetscInt, 2>> &ranges);
+// The supports from the cones, as DMPlexSymmetrize makes them (each point's supports by increasing point),
+// for a plex whose cones are set and whose supports are not, without its calls per point and cone entry.
+PetscErrorCode SymmetrizeCones(DM dm);
 // Local coordinates of the vertices vStart .. vStart + n - 1, from x with 3 numbers per vertex (the first
 // cdim are used).
 PetscErrorCode SetVertexCoordinates(DM dm, PetscInt cdim, PetscInt vStart, PetscInt n, const std::vector<PetscReal> &x);
