@@ -202,6 +202,17 @@ PetscErrorCode SplitTetrahedra(DM coarse, DM fine, const FineNumbering &n, const
   CellVertexReader      reader;
   PetscFunctionBeginUser;
   PetscCall(reader.Init(coarse));
+  // A child's face lists the face's stored vertices in some order: its orientation depends only on where
+  // the first two come from (code 3 * place of the first + place of the second), so PETSc is asked once
+  // per order, not once per child face.
+  PetscInt orientation[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+  {
+    const PetscInt stored[3] = {0, 1, 2};
+    PetscInt       perm[3]   = {0, 1, 2};
+    do PetscCall(DMPolytopeGetVertexOrientation(DM_POLYTOPE_TRIANGLE, stored, perm, &orientation[3 * perm[0] + perm[1]]));
+    while (std::next_permutation(perm, perm + 3));
+  }
+  const auto place = [](const std::array<PetscInt, 3> &v, PetscInt x) { return v[0] == x ? 0 : v[1] == x ? 1 : 2; };
   for (PetscInt c = n.cS; c < n.cS + n.nC; ++c) {
     const PetscInt *cellCone;
     PetscInt        verts[4];
@@ -258,7 +269,7 @@ PetscErrorCode SplitTetrahedra(DM coarse, DM fine, const FineNumbering &n, const
         const Known<3>               *face = Find<3>(faces, want);
         PetscCheck(face, PETSC_COMM_SELF, PETSC_ERR_PLIB, "refinement: no face %" PetscInt_FMT " for child %" PetscInt_FMT " of cell %" PetscInt_FMT, f, k, c);
         cone[f] = face->point;
-        PetscCall(DMPolytopeGetVertexOrientation(DM_POLYTOPE_TRIANGLE, face->verts.data(), want.data(), &ornt[f]));
+        ornt[f] = orientation[3 * place(face->verts, want[0]) + place(face->verts, want[1])];
       }
       PetscCall(DMPlexSetCone(fine, n.Cell(c, k), cone));
       PetscCall(DMPlexSetConeOrientation(fine, n.Cell(c, k), ornt));
