@@ -652,12 +652,7 @@ PetscErrorCode CellCones(const Fine &f, PetscInt *cones, PetscInt *ornts)
   // A child's face k lists the triangle's vertices (a < b < c) in some order: the orientation depends only
   // on which of them comes first and second (code 3 * rank of the first + rank of the second).
   PetscInt orientation[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
-  if (f.dim == 3) {
-    const PetscInt sorted[3] = {0, 1, 2};
-    PetscInt       perm[3]   = {0, 1, 2};
-    do PetscCall(DMPolytopeGetVertexOrientation(DM_POLYTOPE_TRIANGLE, sorted, perm, &orientation[3 * perm[0] + perm[1]]));
-    while (std::next_permutation(perm, perm + 3));
-  }
+  if (f.dim == 3) PetscCall(TriangleOrientations(orientation));
   for (PetscInt t = 0; t < f.nc; ++t) {
     PetscInt       *cone = cones + nb * t, *ornt = ornts + nb * t;
     const PetscInt *v    = &f.childVerts[nb * t];

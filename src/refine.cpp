@@ -202,16 +202,8 @@ PetscErrorCode SplitTetrahedra(DM coarse, DM fine, const FineNumbering &n, const
   CellVertexReader      reader;
   PetscFunctionBeginUser;
   PetscCall(reader.Init(coarse));
-  // A child's face lists the face's stored vertices in some order: its orientation depends only on where
-  // the first two come from (code 3 * place of the first + place of the second), so PETSc is asked once
-  // per order, not once per child face.
-  PetscInt orientation[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
-  {
-    const PetscInt stored[3] = {0, 1, 2};
-    PetscInt       perm[3]   = {0, 1, 2};
-    do PetscCall(DMPolytopeGetVertexOrientation(DM_POLYTOPE_TRIANGLE, stored, perm, &orientation[3 * perm[0] + perm[1]]));
-    while (std::next_permutation(perm, perm + 3));
-  }
+  PetscInt orientation[9]; // of a child's face, by where its first two vertices lie in the face's stored order
+  PetscCall(TriangleOrientations(orientation));
   const auto place = [](const std::array<PetscInt, 3> &v, PetscInt x) { return v[0] == x ? 0 : v[1] == x ? 1 : 2; };
   for (PetscInt c = n.cS; c < n.cS + n.nC; ++c) {
     const PetscInt *cellCone;
@@ -390,6 +382,17 @@ PetscErrorCode SetCellTypeStrata(DM dm, const std::vector<CellTypeStratum> &stra
     PetscCall(DMLabelSetStratumIS(label, s.type, is));
     PetscCall(ISDestroy(&is));
   }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TriangleOrientations(PetscInt orientation[9])
+{
+  const PetscInt stored[3] = {0, 1, 2};
+  PetscInt       perm[3]   = {0, 1, 2};
+  PetscFunctionBeginUser;
+  std::fill(orientation, orientation + 9, 0);
+  do PetscCall(DMPolytopeGetVertexOrientation(DM_POLYTOPE_TRIANGLE, stored, perm, &orientation[3 * perm[0] + perm[1]]));
+  while (std::next_permutation(perm, perm + 3));
   PetscFunctionReturn(0);
 }
 

@@ -35,6 +35,10 @@ struct CellTypeStratum {
   PetscInt       start, end;
 };
 PetscErrorCode SetCellTypeStrata(DM dm, const std::vector<CellTypeStratum> &strata);
+// The orientation of a triangle listed by a cell in some order of its stored vertices: it depends only on
+// where the first two come from, orientation[3 * place of the first + place of the second] (PETSc asked
+// once per order instead of once per face).
+PetscErrorCode TriangleOrientations(PetscInt orientation[9]);
 // The depth label as DMPlexStratify makes it for a chart whose points of depth d are the contiguous range
 // ranges[d] = {start, end} (d = 0 .. dim): one stride stratum a depth, every depth on every rank
 // (collective), and the plex's depth state. Without DMPlexStratify's calls per point and per support.
