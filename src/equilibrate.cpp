@@ -858,8 +858,8 @@ private:
 };
 
 // F_T^2 = ||kappa^{-1/2}(kappa grad u_h - sigma)||_T^2 of every cell (see CellFlux), from the flux and
-// kappa_T grad u_h (computed again: see CellRecord). The dimension is a constant here: the short loops of CellFlux, inlined,
-// unroll (with the dimension a variable this loop took four times as long).
+// kappa_T grad u_h (computed again: see CellRecord). The dimension is a constant here, so that the short
+// loops of CellFlux, inlined, unroll: with the dimension a variable they did not, and the loop was slow.
 template <PetscInt dim>
 void FluxTermsD(const Space &space, const System &sys, const PetscScalar *u, Reconstruction &r)
 {

@@ -106,8 +106,8 @@ void TriangleChildVertices(const FineNumbering &n, const OrientedEdge ed[3], con
 }
 
 // The fine plex's cones and orientations written straight into its arrays: what DMPlexSetCone and
-// DMPlexSetConeOrientation write, without their checks and section look-ups on every call (a tenth of the
-// 3D refinement). The chart starts at 0, the cone sizes are set and the arrays allocated (DMSetUp, which
+// DMPlexSetConeOrientation write, without their checks and section look-ups on every call, which added up
+// over the millions of fine points. The chart starts at 0, the cone sizes are set and the arrays allocated (DMSetUp, which
 // zeroes the orientations).
 struct ConeArrays {
   PetscInt       *cone, *ornt;
@@ -179,7 +179,7 @@ struct Known {
 
 // The known point with the vertices `verts` (in any order), or null. A coarse tetrahedron has 25 fine
 // edges and 24 fine faces on or in it, so a linear search is as fast as anything, with the keys compared
-// entry by entry in line (std::array's == called memcmp for each: a third of the 3D refinement's time).
+// entry by entry in line (std::array's == calls memcmp for each candidate, which then dominates).
 template <int N>
 static const Known<N> *Find(const std::vector<Known<N>> &known, std::array<PetscInt, N> verts)
 {
