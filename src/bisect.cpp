@@ -106,9 +106,8 @@ PetscErrorCode ReadCoarse(DM dm, Coarse &m)
     for (PetscInt d = 0; d < m.cdim; ++d) m.x[3 * (v - m.vS) + d] = PetscRealPart(cx[off + d]);
   }
   PetscCall(VecRestoreArrayRead(cvec, &cx));
-  // The cones straight from the plex's arrays (DMPlexGetCone's result, without a call per point).
-  const DM_Plex *plex = (const DM_Plex *)dm->data;
-  const auto     cone = [plex](PetscInt p) { return plex->cones + plex->coneSection->atlasOff[p - plex->coneSection->pStart]; };
+  const PlexCones plexCones(dm);
+  const auto      cone = [&plexCones](PetscInt p) { return plexCones.Cone(p); };
   m.edgeVerts.resize(2 * m.NumEdges());
   for (PetscInt e = m.eS; e < m.eE; ++e)
     for (PetscInt k = 0; k < 2; ++k) m.edgeVerts[2 * (e - m.eS) + k] = cone(e)[k] - m.vS;

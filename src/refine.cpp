@@ -74,15 +74,13 @@ struct OrientedEdge {
 };
 
 // The edges of coarse triangle t in its own order: edge k runs from vertex k to vertex k + 1.
-PetscErrorCode TriangleEdges(DM coarse, const FineNumbering &n, PetscInt t, OrientedEdge ed[3], const PetscInt **cone)
+PetscErrorCode TriangleEdges(const PlexCones &coarse, const FineNumbering &n, PetscInt t, OrientedEdge ed[3], const PetscInt **cone)
 {
-  const PetscInt *ornt;
   PetscFunctionBeginUser;
-  PetscCall(DMPlexGetCone(coarse, t, cone));
-  PetscCall(DMPlexGetConeOrientation(coarse, t, &ornt));
+  *cone                = coarse.Cone(t);
+  const PetscInt *ornt = coarse.Orientation(t);
   for (PetscInt k = 0; k < 3; ++k) {
-    const PetscInt *ends;
-    PetscCall(DMPlexGetCone(coarse, (*cone)[k], &ends));
+    const PetscInt *ends = coarse.Cone((*cone)[k]);
     PetscCheck(ornt[k] == 0 || ornt[k] == -1, PETSC_COMM_SELF, PETSC_ERR_SUP, "refinement: edge orientation %" PetscInt_FMT " in triangle %" PetscInt_FMT, ornt[k], t);
     const bool fwd = ornt[k] == 0;
     ed[k] = {fwd ? ends[0] : ends[1], fwd ? ends[1] : ends[0], n.Half((*cone)[k], fwd ? 0 : 1), n.Half((*cone)[k], fwd ? 1 : 0), ornt[k]};
@@ -125,11 +123,11 @@ struct ConeArrays {
 
 PetscErrorCode SetEdgeHalves(DM coarse, DM fine, const FineNumbering &n)
 {
-  ConeArrays cones(fine);
+  ConeArrays      cones(fine);
+  const PlexCones coarseCones(coarse);
   PetscFunctionBeginUser;
   for (PetscInt e = n.eS; e < n.eS + n.nE; ++e) {
-    const PetscInt *cone;
-    PetscCall(DMPlexGetCone(coarse, e, &cone));
+    const PetscInt *cone = coarseCones.Cone(e);
     const PetscInt h0[2] = {n.Vertex(cone[0]), n.Mid(e)}, h1[2] = {n.Mid(e), n.Vertex(cone[1])};
     cones.Set(n.Half(e, 0), h0);
     cones.Set(n.Half(e, 1), h1);
@@ -142,12 +140,13 @@ PetscErrorCode SetEdgeHalves(DM coarse, DM fine, const FineNumbering &n)
 // middle triangle reversed.
 PetscErrorCode SplitTriangles(DM coarse, DM fine, const FineNumbering &n)
 {
-  ConeArrays fineCones(fine);
+  ConeArrays      fineCones(fine);
+  const PlexCones coarseCones(coarse);
   PetscFunctionBeginUser;
   for (PetscInt t = n.TriangleStart(); t < n.TriangleStart() + n.NumTriangles(); ++t) {
     const PetscInt *cone;
     OrientedEdge    ed[3];
-    PetscCall(TriangleEdges(coarse, n, t, ed, &cone));
+    PetscCall(TriangleEdges(coarseCones, n, t, ed, &cone));
     const PetscInt m[3]        = {n.Mid(cone[0]), n.Mid(cone[1]), n.Mid(cone[2])};
     const PetscInt inner[3][2] = {{m[0], m[2]}, {m[1], m[0]}, {m[2], m[1]}};
     for (PetscInt j = 0; j < 3; ++j) fineCones.Set(n.TriangleEdge(t, j), inner[j]);
@@ -221,17 +220,17 @@ PetscErrorCode SplitTetrahedra(DM coarse, DM fine, const FineNumbering &n, const
   std::vector<Known<3>> faces;
   CellVertexReader      reader;
   ConeArrays            fineCones(fine);
+  const PlexCones       coarseCones(coarse);
   PetscFunctionBeginUser;
   PetscCall(reader.Init(coarse));
   PetscInt orientation[9]; // of a child's face, by where its first two vertices lie in the face's stored order
   PetscCall(TriangleOrientations(orientation));
   const auto place = [](const std::array<PetscInt, 3> &v, PetscInt x) { return v[0] == x ? 0 : v[1] == x ? 1 : 2; };
   for (PetscInt c = n.cS; c < n.cS + n.nC; ++c) {
-    const PetscInt *cellCone;
-    PetscInt        verts[4];
+    PetscInt verts[4];
     reader.Vertices(c, verts);
-    const PetscInt w[4] = {n.Vertex(verts[3]), n.Vertex(verts[2]), n.Vertex(verts[1]), n.Vertex(verts[0])}; // PETSc's order
-    PetscCall(DMPlexGetCone(coarse, c, &cellCone));
+    const PetscInt  w[4]     = {n.Vertex(verts[3]), n.Vertex(verts[2]), n.Vertex(verts[1]), n.Vertex(verts[0])}; // PETSc's order
+    const PetscInt *cellCone = coarseCones.Cone(c);
     // The fine edges and faces on the cell's boundary, with their stored vertex order.
     edges.clear();
     faces.clear();
@@ -239,7 +238,7 @@ PetscErrorCode SplitTetrahedra(DM coarse, DM fine, const FineNumbering &n, const
     for (PetscInt k = 0; k < 4; ++k) {
       const PetscInt *cone;
       OrientedEdge    ed[3];
-      PetscCall(TriangleEdges(coarse, n, cellCone[k], ed, &cone));
+      PetscCall(TriangleEdges(coarseCones, n, cellCone[k], ed, &cone));
       std::array<PetscInt, 3> child[4];
       TriangleChildVertices(n, ed, cone, child);
       for (PetscInt j = 0; j < 4; ++j) faces.emplace_back(n.FaceChild(cellCone[k], j), child[j]);
@@ -380,9 +379,9 @@ PetscErrorCode FineCoordinates(DM coarse, const FineNumbering &n, std::vector<Pe
     PetscCall(PetscSectionGetOffset(csec, v, &off));
     for (PetscInt d = 0; d < cdim; ++d) x[(v - n.vS) * 3 + d] = PetscRealPart(cx[off + d]);
   }
+  const PlexCones cones(coarse);
   for (PetscInt e = n.eS; e < n.eS + n.nE; ++e) {
-    const PetscInt *cone;
-    PetscCall(DMPlexGetCone(coarse, e, &cone));
+    const PetscInt *cone = cones.Cone(e);
     for (PetscInt d = 0; d < 3; ++d) x[(n.nV + e - n.eS) * 3 + d] = 0.5 * (x[(cone[0] - n.vS) * 3 + d] + x[(cone[1] - n.vS) * 3 + d]);
   }
   PetscCall(VecRestoreArrayRead(cvec, &cx));
@@ -404,6 +403,12 @@ PetscErrorCode SetCellTypeStrata(DM dm, const std::vector<CellTypeStratum> &stra
     PetscCall(ISDestroy(&is));
   }
   PetscFunctionReturn(0);
+}
+
+PlexCones::PlexCones(DM dm)
+{
+  const DM_Plex *mesh = (const DM_Plex *)dm->data;
+  cones = mesh->cones, ornts = mesh->coneOrientations, off = mesh->coneSection->atlasOff, pStart = mesh->coneSection->pStart;
 }
 
 PetscErrorCode TriangleOrientations(PetscInt orientation[9])

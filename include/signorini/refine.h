@@ -35,6 +35,16 @@ struct CellTypeStratum {
   PetscInt       start, end;
 };
 PetscErrorCode SetCellTypeStrata(DM dm, const std::vector<CellTypeStratum> &strata);
+// A plex's cones and cone orientations read straight from its arrays: DMPlexGetCone's and
+// DMPlexGetConeOrientation's results without a call (and a section look-up) per point. Valid while the
+// plex's cones stay as they are.
+struct PlexCones {
+  const PetscInt *cones = nullptr, *ornts = nullptr, *off = nullptr;
+  PetscInt        pStart = 0;
+  explicit PlexCones(DM dm);
+  const PetscInt *Cone(PetscInt p) const { return cones + off[p - pStart]; }
+  const PetscInt *Orientation(PetscInt p) const { return ornts + off[p - pStart]; }
+};
 // The orientation of a triangle listed by a cell in some order of its stored vertices: it depends only on
 // where the first two come from, orientation[3 * place of the first + place of the second] (PETSc asked
 // once per order instead of once per face).
