@@ -236,11 +236,10 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
   PetscLogDouble         now, t0;
   PetscFunctionBeginUser;
   if (nested_) {
+    MeshSolution s0;
     PetscCall(nested_->Solved(std::move(m)));
-    if (!nested_->finest.u) PetscFunctionReturn(0); // a coarse level
-    step_           = 0;
-    MeshSolution s0 = std::move(nested_->finest);
-    nested_->finest = MeshSolution(); // a moved MeshSolution still holds the handles
+    if (!nested_->TakeFinest(s0)) PetscFunctionReturn(0);
+    step_ = 0;
     nested_.reset();
     // the state MultigridCarry leaves after step 0, with the uniform levels below it
     levelDofs_    = std::move(handover_.p1Dofs);

@@ -23,10 +23,9 @@ PetscErrorCode AssemblyOptionsFromCommandLine(MPI_Comm comm, AssemblyOptions &o)
 
 // The dimension a template parameter in the cell loops (see ComputeCellGeometryD), a variable elsewhere.
 template <PetscInt dim>
-static void ElementStiffnessD(Element element, PetscReal kappa, const CellGeometry &g, PetscReal *Ke)
+static void ElementStiffnessD(PetscReal b, PetscReal kappa, const CellGeometry &g, PetscReal *Ke) // b: Space::GradScale
 {
   constexpr PetscInt nb = dim + 1;
-  const PetscReal    b  = element == Element::P1 ? 1.0 : -(PetscReal)dim; // grad phi_i = b grad lambda_i
   PetscReal          grad[4][3];
   for (PetscInt i = 0; i < nb; ++i)
     for (PetscInt d = 0; d < dim; ++d) grad[i][d] = b * g.gradLambda[i][d];
@@ -39,8 +38,8 @@ static void ElementStiffnessD(Element element, PetscReal kappa, const CellGeomet
 }
 void ElementStiffness(const Space &space, PetscInt, PetscReal kappa, const CellGeometry &g, PetscReal *Ke)
 {
-  if (space.dim == 2) ElementStiffnessD<2>(space.element, kappa, g, Ke);
-  else ElementStiffnessD<3>(space.element, kappa, g, Ke);
+  if (space.dim == 2) ElementStiffnessD<2>(space.GradScale(), kappa, g, Ke);
+  else ElementStiffnessD<3>(space.GradScale(), kappa, g, Ke);
 }
 
 // The load as double precision holds it: f (or g) times a quadrature weight and a cell measure may
@@ -199,6 +198,7 @@ static PetscErrorCode AssembleCellsD(const Space &space, const Problem &problem,
 {
   constexpr PetscInt     nb = dim + 1;
   const PetscInt         nq = sys.cellRule.Size();
+  const PetscReal        b  = space.GradScale();
   PetscReal              Ke[16], phi[4][4], vertex[4];
   std::vector<PetscReal> work;
   Space::Coords          X[LoadBlock::kCells];
@@ -216,7 +216,7 @@ static PetscErrorCode AssembleCellsD(const Space &space, const Problem &problem,
     for (PetscInt i = 0; i < m; ++i) {
       X[i] = space.XD<dim>(c0 + i); // gathered once: every quadrature point needs it
       ComputeCellGeometryD<dim>(X[i], g[i]);
-      ElementStiffnessD<dim>(space.element, sys.Kappa(c0 + i), g[i], Ke);
+      ElementStiffnessD<dim>(b, sys.Kappa(c0 + i), g[i], Ke);
       PetscCall(fill.Add(space.Dofs(c0 + i), Ke));
     }
     if (zeroLoad) continue;

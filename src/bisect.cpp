@@ -45,7 +45,7 @@
 #include "signorini/refine.h"
 
 #include <petsc/private/dmpleximpl.h>  // DM_Plex: the cones and supports, see BuildPlex
-#include <petsc/private/sectionimpl.h> // the sizes of the cones and supports, see BuildPlex
+#include <petsc/private/sectionimpl.h> // the sizes of the cones, see BuildPlex
 
 #include <algorithm>
 #include <array>
@@ -673,47 +673,33 @@ PetscErrorCode CellCones(const Fine &f, PetscInt *cones, PetscInt *ornts)
 }
 
 // The plex's cones, supports and depth strata, written straight into its arrays and sections: what
-// DMPlexSetConeSize, DMPlexSetCone, DMPlexSymmetrize and DMPlexStratify make, with the same supports in
-// the same order (by increasing point, as DMPlexSymmetrize lists them), but without their calls and checks
-// per point and cone entry, which made them most of the refinement. Cones: an edge from its lower to its
+// DMPlexSetConeSize, DMPlexSetCone, DMPlexSymmetrize and DMPlexStratify make (the last two as the uniform
+// refinement makes them, SymmetrizeCones and SetDepthStrata), but without their calls and checks per point
+// and cone entry, which made them most of the refinement. Cones: an edge from its lower to its
 // higher vertex; a triangle (a, b, c), a < b < c, with edges (a, b), (b, c), (c, a), the last reversed;
 // a child's faces in PETSc's reference order. The depth of every point is known from its stratum in the
 // chart (cells, vertices, triangles, edges).
 PetscErrorCode BuildPlex(DM dm, const Fine &f)
 {
   const PetscInt nb = f.dim + 1, end = f.End();
-  PetscInt       size, supportSize;
+  PetscInt       size;
   PetscFunctionBeginUser;
   PetscCall(DMPlexSetChart(dm, 0, end));
   DM_Plex     *mesh = (DM_Plex *)dm->data;
-  PetscSection cs = mesh->coneSection, ss = mesh->supportSection;
-  PetscCheck(cs->pStart == 0 && ss->pStart == 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: unexpected chart");
-  const auto coneSize = [&](PetscInt p) { return p < f.nc ? nb : p < f.Tri(0) ? 0 : p < f.Edge(0) ? 3 : 2; };
-  for (PetscInt p = 0; p < end; ++p) cs->atlasDof[p] = coneSize(p);
-  // The supports' sizes: every point once in the cone of each point that has it.
-  PetscInt *count = ss->atlasDof;
-  std::fill(count, count + end, 0);
-  for (PetscInt k : f.dim == 2 ? f.childEdge : f.childTri) ++count[f.dim == 2 ? f.Edge(k) : f.Tri(k)];
-  for (PetscInt k : f.triEdges) ++count[f.Edge(k)];
-  for (PetscInt k : f.edgeVerts) ++count[f.Vertex(k)];
-  cs->maxDof = ss->maxDof = PETSC_MIN_INT; // recomputed when asked for (see PetscSectionInvalidateMaxDof_Internal)
-  PetscCall(DMSetUp(dm)); // sets up the sections, allocates the cones and supports
+  PetscSection cs   = mesh->coneSection;
+  PetscCheck(cs->pStart == 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: unexpected chart");
+  for (PetscInt p = 0; p < end; ++p) cs->atlasDof[p] = p < f.nc ? nb : p < f.Tri(0) ? 0 : p < f.Edge(0) ? 3 : 2;
+  cs->maxDof = PETSC_MIN_INT; // recomputed when asked for (see PetscSectionInvalidateMaxDof_Internal)
+  PetscCall(DMSetUp(dm));     // sets up the cone section, allocates the cones (the supports: SymmetrizeCones)
   PetscCall(PetscSectionGetStorageSize(cs, &size));
-  PetscCall(PetscSectionGetStorageSize(ss, &supportSize));
-  PetscCheck(size == nb * f.nc + 3 * f.nt + 2 * f.ne && supportSize == size && (!size || mesh->supports), PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: %" PetscInt_FMT " cone and %" PetscInt_FMT " support entries", size, supportSize);
+  PetscCheck(size == nb * f.nc + 3 * f.nt + 2 * f.ne, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: %" PetscInt_FMT " cone entries", size);
   PetscCall(CellCones(f, mesh->cones, mesh->coneOrientations));
   PetscInt *tcone = mesh->cones + nb * f.nc, *tornt = mesh->coneOrientations + nb * f.nc;
   for (PetscInt j = 0; j < f.nt; ++j)
     for (PetscInt e = 0; e < 3; ++e) tcone[3 * j + e] = f.Edge(f.triEdges[3 * j + e]), tornt[3 * j + e] = e == 2 ? -1 : 0;
   PetscInt *econe = tcone + 3 * f.nt, *eornt = tornt + 3 * f.nt;
   for (PetscInt j = 0; j < 2 * f.ne; ++j) econe[j] = f.Vertex(f.edgeVerts[j]), eornt[j] = 0;
-  // Each point's supports by increasing point; the sizes count up again from 0 as the places are filled.
-  std::fill(count, count + end, 0);
-  for (PetscInt p = 0, i = 0; p < end; ++p)
-    for (PetscInt k = coneSize(p); k > 0; --k, ++i) {
-      const PetscInt q = mesh->cones[i];
-      mesh->supports[ss->atlasOff[q] + count[q]++] = p;
-    }
+  PetscCall(SymmetrizeCones(dm));
   // Depth strata, as DMPlexStratify makes them: vertices, edges, triangles (3D), cells.
   std::vector<std::array<PetscInt, 2>> depthRanges = {{f.Vertex(0), f.Vertex(f.nv)}, {f.Edge(0), end}};
   if (f.dim == 3) depthRanges.push_back({f.Tri(0), f.Tri(f.nt)});

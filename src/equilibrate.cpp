@@ -262,7 +262,7 @@ void CellLoads(const Space &space, const Problem &problem, const System &sys, Ce
       CellGeometry        g;
       CellLoad            load;
       ComputeCellGeometry(space.dim, X, g);
-      GetCellLoad(space, problem, sys, c, X, g, work, load, error);
+      EvaluateCellLoad(space, problem, sys, c, X, g, work, load, error);
       std::copy(load.moment, load.moment + n - 1, &cd.ownLoad[c * n]);
       cd.ownLoad[c * n + n - 1] = load.oscillation;
     }

@@ -217,10 +217,9 @@ PetscErrorCode ConvergenceStudy::Solved(MeshSolution &&m)
 {
   PetscFunctionBeginUser;
   if (refNested_) {
+    MeshSolution ref;
     PetscCall(refNested_->Solved(std::move(m)));
-    if (!refNested_->finest.u) PetscFunctionReturn(0); // a coarse level
-    MeshSolution ref    = std::move(refNested_->finest);
-    refNested_->finest = MeshSolution(); // a moved MeshSolution still holds the handles
+    if (!refNested_->TakeFinest(ref)) PetscFunctionReturn(0);
     refNested_.reset();
     PetscCall(MeshLevelsDestroy(refLevels_));
     PetscCall(Reference(ref));

@@ -58,8 +58,9 @@ PetscErrorCode SystemDestroy(System &sys);
 // J(u) = 1/2 a_h(u, u) - chi(u), computed cell by cell from the unreduced element matrices.
 PetscErrorCode DiscreteEnergy(const Space &space, const System &sys, Vec u, PetscReal *J);
 // The load of cell c (vertices X, geometry g) as the assembly computed it: read from sys.cellLoads where the
-// assembly kept them (inline: the estimate's cell loops read it for every cell), else evaluated again (a constant f is not evaluated per point). `work` is scratch
-// space kept across cells; a NaN of f is reported in `error` (CheckAll after the loop).
+// assembly kept them (inline: the estimate's cell loops read it for every cell), else evaluated again by
+// EvaluateCellLoad (a constant f is not evaluated per point). `work` is scratch space kept across cells; a
+// NaN of f is reported in `error` (CheckAll after the loop).
 void EvaluateCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, std::string &error);
 inline void GetCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, std::string &error)
 {

@@ -90,6 +90,15 @@ public:
   PetscErrorCode Carry(MeshSolution &cur, bool &carried) override;
   PetscErrorCode Solved(MeshSolution &&m) override;
   MeshSolution   finest;
+  // For a strategy that runs this one as its first part (the study's reference, an adaptive run's first
+  // mesh): once the finest level is solved, moves `finest` into `out` and returns true.
+  bool TakeFinest(MeshSolution &out)
+  {
+    if (!finest.u) return false; // a coarse level
+    out    = std::move(finest);
+    finest = MeshSolution(); // a moved MeshSolution still holds the handles
+    return true;
+  }
 
 private:
   MeshLevels                     &levels_;

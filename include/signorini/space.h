@@ -206,7 +206,7 @@ struct Space {
   template <PetscInt D>
   void GradD(PetscInt c, const PetscScalar *a, const CellGeometry &g, PetscReal *grad) const
   {
-    const PetscReal b = element == Element::P1 ? 1.0 : -(PetscReal)D; // grad phi_i = b grad lambda_i
+    const PetscReal b = GradScale(); // grad phi_i = b grad lambda_i
     for (PetscInt d = 0; d < D; ++d) grad[d] = 0;
     for (PetscInt i = 0; i <= D; ++i)
       for (PetscInt d = 0; d < D; ++d) grad[d] += PetscRealPart(a[Dofs(c)[i]]) * (b * g.gradLambda[i][d]);
@@ -215,9 +215,11 @@ struct Space {
   {
     return element == Element::P1 ? lambda[i] : 1.0 - dim * lambda[i];
   }
-  void BasisGrad(PetscInt, PetscInt i, const CellGeometry &g, PetscReal *grad) const
+  // b of phi_i = a + b lambda_i (see the top of the file): grad phi_i = b grad lambda_i.
+  PetscReal GradScale() const { return element == Element::P1 ? 1.0 : -(PetscReal)dim; }
+  void      BasisGrad(PetscInt, PetscInt i, const CellGeometry &g, PetscReal *grad) const
   {
-    const PetscReal b = element == Element::P1 ? 1.0 : -(PetscReal)dim;
+    const PetscReal b = GradScale();
     for (PetscInt d = 0; d < dim; ++d) grad[d] = b * g.gradLambda[i][d];
   }
   // The discrete function u_h = sum_i a_i phi_i on cell c, a a local vector's array: its value at barycentric
