@@ -526,17 +526,18 @@ PetscInt Carrier(const Coarse &m, PetscInt c, int on)
   return -1;
 }
 
-// Numbers the distinct keys (pairs (bucket, rest), one per occurrence o < n, from keyOf(o)) in increasing
-// order: idOf[occurrence] = number, `keys` gets each key once (2 numbers), `first` its first occurrence.
-// The occurrences are bucketed (a counting sort) and each bucket, a few dozen, sorted by the rest: two
-// passes over the occurrences, where a radix sort by every vertex of a key moved all of them once per
-// vertex.
+// Numbers the distinct keys (pairs (bucket, rest), one per occurrence o < n, from keyOf(o); rest < numRest)
+// in increasing order: idOf[occurrence] = number, `keys` gets each key once (2 numbers), `first` its first
+// occurrence. The occurrences are bucketed (a counting sort, which keeps them in increasing order within a
+// bucket), and each bucket's distinct rests are found by marking them (seen[rest]: the bucket that last
+// met it) and sorted, a handful where a bucket has a few dozen occurrences (a tetrahedral mesh's vertex
+// has about 36 edge occurrences, 14 of them distinct): sorting all occurrences of each bucket was most of
+// the refinement's numbering.
 template <class KeyOf>
-void Distinct(PetscInt n, PetscInt numBuckets, const KeyOf &keyOf, std::vector<PetscInt> &idOf, std::vector<PetscInt> &keys, std::vector<PetscInt> &first)
+void Distinct(PetscInt n, PetscInt numBuckets, PetscInt numRest, const KeyOf &keyOf, std::vector<PetscInt> &idOf, std::vector<PetscInt> &keys, std::vector<PetscInt> &first)
 {
   struct Record {
     PetscInt rest, o;
-    bool     operator<(const Record &r) const { return rest != r.rest ? rest < r.rest : o < r.o; }
   };
   std::vector<PetscInt> start(numBuckets + 1, 0);
   for (PetscInt o = 0; o < n; ++o) ++start[keyOf(o)[0] + 1];
@@ -550,18 +551,22 @@ void Distinct(PetscInt n, PetscInt numBuckets, const KeyOf &keyOf, std::vector<P
   idOf.resize(n);
   keys.clear(), first.clear();
   keys.reserve(2 * n), first.reserve(n); // pages untouched beyond the distinct keys
-  PetscInt id = -1;
+  std::vector<PetscInt> seen(numRest, -1), idOfRest(numRest);
+  std::vector<Record>   distinct; // of one bucket: its rests and their first occurrences
+  PetscInt              id = 0;
   for (PetscInt b = 0, lo = 0; b < numBuckets; lo = start[b++]) {
-    Record *r0 = rec.data() + lo, *r1 = rec.data() + start[b];
-    std::sort(r0, r1);
-    for (const Record *r = r0; r < r1; ++r) {
-      if (r == r0 || r->rest != r[-1].rest) {
-        ++id;
-        keys.push_back(b), keys.push_back(r->rest);
-        first.push_back(r->o);
-      }
-      idOf[r->o] = id;
+    const Record *r0 = rec.data() + lo, *r1 = rec.data() + start[b];
+    distinct.clear();
+    for (const Record *r = r0; r < r1; ++r)
+      if (seen[r->rest] != b) seen[r->rest] = b, distinct.push_back(*r);
+    for (size_t i = 1; i < distinct.size(); ++i) // insertion sort by rest: a few entries
+      for (size_t j = i; j > 0 && distinct[j].rest < distinct[j - 1].rest; --j) std::swap(distinct[j], distinct[j - 1]);
+    for (const Record &d : distinct) {
+      keys.push_back(b), keys.push_back(d.rest);
+      first.push_back(d.o);
+      idOfRest[d.rest] = id++;
     }
+    for (const Record *r = r0; r < r1; ++r) idOf[r->o] = idOfRest[r->rest];
   }
 }
 
@@ -597,7 +602,7 @@ void FinePoints(const Coarse &m, const Children &ch, const std::vector<PetscInt>
   std::vector<PetscInt> first;
   // Edges (a, b), a < b, bucketed by a.
   Distinct(
-    nce * f.nc, f.nv,
+    nce * f.nc, f.nv, f.nv,
     [&](PetscInt o) {
       const PetscInt *v = cv + nb * (o / nce), *p = kPair[o % nce];
       return std::array<PetscInt, 2>{std::min(v[p[0]], v[p[1]]), std::max(v[p[0]], v[p[1]])};
@@ -614,7 +619,7 @@ void FinePoints(const Coarse &m, const Children &ch, const std::vector<PetscInt>
   // (a, b), so the order of (edge, c) is that of (a, b, c), and the buckets are small.
   std::vector<PetscInt> edgeAndTop;
   Distinct(
-    4 * f.nc, f.ne,
+    4 * f.nc, f.ne, f.nv,
     [&](PetscInt o) {
       const PetscInt  t = o / 4, *v = cv + 4 * t, *r = kRefFace[o % 4];
       const PetscInt top = v[r[0]] > v[r[1]] ? (v[r[0]] > v[r[2]] ? 0 : 2) : (v[r[1]] > v[r[2]] ? 1 : 2);
