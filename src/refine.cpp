@@ -463,12 +463,12 @@ PetscErrorCode SymmetrizeCones(DM dm)
   PetscCall(PetscSectionSetUp(ss));
   PetscCall(PetscSectionGetStorageSize(ss, &size));
   PetscCall(PetscMalloc1(size, &mesh->supports));
-  std::fill(count, count + n, 0);
+  // The sizes serve as each support's next place meanwhile (one array read at random per entry, not two),
+  // and are sizes again once every place is filled.
+  for (PetscInt q = 0; q < n; ++q) count[q] = ss->atlasOff[q];
   for (PetscInt p = 0; p < n; ++p)
-    for (PetscInt i = cs->atlasOff[p]; i < cs->atlasOff[p] + cs->atlasDof[p]; ++i) {
-      const PetscInt q = mesh->cones[i] - pStart;
-      mesh->supports[ss->atlasOff[q] + count[q]++] = p + pStart;
-    }
+    for (PetscInt i = cs->atlasOff[p]; i < cs->atlasOff[p] + cs->atlasDof[p]; ++i) mesh->supports[count[mesh->cones[i] - pStart]++] = p + pStart;
+  for (PetscInt q = 0; q < n; ++q) count[q] -= ss->atlasOff[q];
   PetscFunctionReturn(0);
 }
 
