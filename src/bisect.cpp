@@ -530,9 +530,8 @@ PetscInt Carrier(const Coarse &m, PetscInt c, int on)
 // in increasing order: idOf[occurrence] = number, `keys` gets each key once (2 numbers), `first` its first
 // occurrence. The occurrences are bucketed (a counting sort, which keeps them in increasing order within a
 // bucket), and each bucket's distinct rests are found by marking them (seen[rest]: the bucket that last
-// met it) and sorted, a handful where a bucket has a few dozen occurrences (a tetrahedral mesh's vertex
-// has about 36 edge occurrences, 14 of them distinct): sorting all occurrences of each bucket was most of
-// the refinement's numbering.
+// met it), so that only those are sorted, not every occurrence: a vertex of a tetrahedral mesh has about
+// 36 edge occurrences, 14 of them distinct.
 template <class KeyOf>
 void Distinct(PetscInt n, PetscInt numBuckets, PetscInt numRest, const KeyOf &keyOf, std::vector<PetscInt> &idOf, std::vector<PetscInt> &keys, std::vector<PetscInt> &first)
 {
@@ -559,8 +558,10 @@ void Distinct(PetscInt n, PetscInt numBuckets, PetscInt numRest, const KeyOf &ke
     distinct.clear();
     for (const Record *r = r0; r < r1; ++r)
       if (seen[r->rest] != b) seen[r->rest] = b, distinct.push_back(*r);
-    for (size_t i = 1; i < distinct.size(); ++i) // insertion sort by rest: a few entries
-      for (size_t j = i; j > 0 && distinct[j].rest < distinct[j - 1].rest; --j) std::swap(distinct[j], distinct[j - 1]);
+    if (distinct.size() > 32) std::sort(distinct.begin(), distinct.end(), [](const Record &x, const Record &y) { return x.rest < y.rest; });
+    else // a few entries, the usual case: an insertion sort is cheaper than std::sort's set-up
+      for (size_t i = 1; i < distinct.size(); ++i)
+        for (size_t j = i; j > 0 && distinct[j].rest < distinct[j - 1].rest; --j) std::swap(distinct[j], distinct[j - 1]);
     for (const Record &d : distinct) {
       keys.push_back(b), keys.push_back(d.rest);
       first.push_back(d.o);
