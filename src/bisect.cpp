@@ -123,39 +123,42 @@ PetscErrorCode ReadCoarse(DM dm, Coarse &m)
   m.cellEdges.resize(m.nce * m.NumCells());
   if (m.dim == 3) m.cellFaces.resize(4 * m.NumCells());
   for (PetscInt c = m.cS; c < m.cE; ++c) {
-    PetscInt  n = 0, edges[6];
     PetscInt *cv = &m.cellVerts[(m.dim + 1) * (c - m.cS)];
     if (m.dim == 2) triangle(c, cv);
     else {
-      PetscInt second[3];
+      PetscInt second[3] = {-1, -1, -1}; // all three set by triangle() (initialised for the compiler)
       triangle(cone(c)[0], cv), triangle(cone(c)[1], second);
       for (PetscInt i = 0; i < 3; ++i)
         if (std::find(cv, cv + 3, second[i]) == cv + 3) cv[3] = second[i];
     }
     // The cell-local vertices (bits) of coarse edge e.
     const auto bits = [&](PetscInt e) {
-      int b = 0;
-      for (PetscInt i = 0; i <= m.dim; ++i)
-        if (cv[i] == m.edgeVerts[2 * e] || cv[i] == m.edgeVerts[2 * e + 1]) b |= 1 << i;
+      const PetscInt a = m.edgeVerts[2 * e], b = m.edgeVerts[2 * e + 1];
+      int            r = 0;
+      for (PetscInt i = 0; i <= m.dim; ++i) r |= (cv[i] == a || cv[i] == b) << i;
+      return r;
+    };
+    // The edges: the cone of a triangle, the edges of the faces of a tetrahedron (each twice). Each goes to
+    // the place of its vertex pair, each face to the place of the vertex it misses.
+    PetscInt *cellEdges = &m.cellEdges[m.nce * (c - m.cS)];
+    int       placed    = 0; // the places filled (bits); an edge without two of the cell's vertices fills none
+    const auto place     = [&](PetscInt e) {
+      const int b = bits(e), k = kPairOf[b];
+      if (k >= 0) cellEdges[k] = e, placed |= 1 << k;
       return b;
     };
-    // The edges: the cone of a triangle, the edges of the faces of a tetrahedron without repeats. Each
-    // goes to the place of its vertex pair, each face to the place of the vertex it misses.
     const PetscInt *ccone = cone(c);
     if (m.dim == 2)
-      for (PetscInt k = 0; k < 3; ++k) edges[n++] = ccone[k] - m.eS;
+      for (PetscInt k = 0; k < 3; ++k) place(ccone[k] - m.eS);
     else
       for (PetscInt f = 0; f < 4; ++f) {
         const PetscInt *fcone = cone(ccone[f]);
         int             on    = 0;
-        for (PetscInt k = 0; k < 3; ++k) {
-          if (std::find(edges, edges + n, fcone[k] - m.eS) == edges + n) edges[n++] = fcone[k] - m.eS;
-          on |= bits(fcone[k] - m.eS);
-        }
-        m.cellFaces[4 * (c - m.cS) + kOpposite[on]] = ccone[f];
+        for (PetscInt k = 0; k < 3; ++k) on |= place(fcone[k] - m.eS);
+        if (kOpposite[on] >= 0) m.cellFaces[4 * (c - m.cS) + kOpposite[on]] = ccone[f];
+        else placed = -1;
       }
-    PetscCheck(n == m.nce, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: cell %" PetscInt_FMT " has %" PetscInt_FMT " edges", c, n);
-    for (PetscInt k = 0; k < n; ++k) m.cellEdges[m.nce * (c - m.cS) + kPairOf[bits(edges[k])]] = edges[k];
+    PetscCheck(placed == (1 << m.nce) - 1, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: cell %" PetscInt_FMT " is not a simplex of %" PetscInt_FMT " distinct edges", c, m.nce);
   }
   PetscFunctionReturn(0);
 }
