@@ -38,8 +38,7 @@ static void ElementStiffnessD(PetscReal b, PetscReal kappa, const CellGeometry &
 }
 void ElementStiffness(const Space &space, PetscInt, PetscReal kappa, const CellGeometry &g, PetscReal *Ke)
 {
-  if (space.dim == 2) ElementStiffnessD<2>(space.GradScale(), kappa, g, Ke);
-  else ElementStiffnessD<3>(space.GradScale(), kappa, g, Ke);
+  WithDim(space.dim, [&](auto D) { ElementStiffnessD<D>(space.GradScale(), kappa, g, Ke); });
 }
 
 // The load as double precision holds it: f (or g) times a quadrature weight and a cell measure may
@@ -103,8 +102,7 @@ static void RulePointsD(const PetscReal *X, const Quadrature &rule, PetscReal *x
 }
 static void RulePoints(PetscInt dim, const PetscReal *X, const Quadrature &rule, PetscReal *x)
 {
-  if (dim == 2) RulePointsD<2>(X, rule, x);
-  else RulePointsD<3>(X, rule, x);
+  WithDim(dim, [&](auto D) { RulePointsD<D>(X, rule, x); });
 }
 
 // The load of a cell (CellLoad) from f's values fx at the points x of the load rule (System::cellRule), the
@@ -152,8 +150,7 @@ static void ComputeCellLoadD(const Space &space, const Problem &problem, const S
 }
 static void ComputeCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, const PetscReal *fx, const PetscReal *x, std::vector<PetscReal> &work, CellLoad &load, bool oscillation, LoadRange *range, std::string &error)
 {
-  if (space.dim == 2) ComputeCellLoadD<2>(space, problem, sys, c, X, g, fx, x, work, load, oscillation, range, error);
-  else ComputeCellLoadD<3>(space, problem, sys, c, X, g, fx, x, work, load, oscillation, range, error);
+  WithDim(space.dim, [&](auto D) { ComputeCellLoadD<D>(space, problem, sys, c, X, g, fx, x, work, load, oscillation, range, error); });
 }
 
 void EvaluateCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, std::vector<PetscReal> &work, CellLoad &load, std::string &error)
@@ -241,7 +238,7 @@ static PetscErrorCode AssembleCellsD(const Space &space, const Problem &problem,
 }
 static PetscErrorCode AssembleCells(const Space &space, const Problem &problem, bool keepLoads, System &sys, StiffnessFill &fill, PetscScalar *load, LoadRange &range, std::string &error)
 {
-  return space.dim == 2 ? AssembleCellsD<2>(space, problem, keepLoads, sys, fill, load, range, error) : AssembleCellsD<3>(space, problem, keepLoads, sys, fill, load, range, error);
+  return WithDim(space.dim, [&](auto D) { return AssembleCellsD<D>(space, problem, keepLoads, sys, fill, load, range, error); });
 }
 
 // The points of the face rule on boundary face bf (x, rule.Size() * dim values), and their barycentric

@@ -106,15 +106,14 @@ PetscErrorCode ReadCoarse(DM dm, Coarse &m)
     for (PetscInt d = 0; d < m.cdim; ++d) m.x[3 * (v - m.vS) + d] = PetscRealPart(cx[off + d]);
   }
   PetscCall(VecRestoreArrayRead(cvec, &cx));
-  const PlexCones plexCones(dm);
-  const auto      cone = [&plexCones](PetscInt p) { return plexCones.Cone(p); };
+  const PlexCones plex(dm);
   m.edgeVerts.resize(2 * m.NumEdges());
   for (PetscInt e = m.eS; e < m.eE; ++e)
-    for (PetscInt k = 0; k < 2; ++k) m.edgeVerts[2 * (e - m.eS) + k] = cone(e)[k] - m.vS;
+    for (PetscInt k = 0; k < 2; ++k) m.edgeVerts[2 * (e - m.eS) + k] = plex.Cone(e)[k] - m.vS;
   // A simplex's vertices in SimplexVertices' order: those of its first facet, then the one of its second
   // facet not on the first.
   const auto triangle = [&](PetscInt p, PetscInt *v) {
-    const PetscInt *a = &m.edgeVerts[2 * (cone(p)[0] - m.eS)], *b = &m.edgeVerts[2 * (cone(p)[1] - m.eS)];
+    const PetscInt *a = &m.edgeVerts[2 * (plex.Cone(p)[0] - m.eS)], *b = &m.edgeVerts[2 * (plex.Cone(p)[1] - m.eS)];
     v[0] = a[0], v[1] = a[1];
     for (PetscInt i = 0; i < 2; ++i)
       if (b[i] != v[0] && b[i] != v[1]) v[2] = b[i];
@@ -127,7 +126,7 @@ PetscErrorCode ReadCoarse(DM dm, Coarse &m)
     if (m.dim == 2) triangle(c, cv);
     else {
       PetscInt second[3] = {-1, -1, -1}; // all three set by triangle() (initialised for the compiler)
-      triangle(cone(c)[0], cv), triangle(cone(c)[1], second);
+      triangle(plex.Cone(c)[0], cv), triangle(plex.Cone(c)[1], second);
       for (PetscInt i = 0; i < 3; ++i)
         if (std::find(cv, cv + 3, second[i]) == cv + 3) cv[3] = second[i];
     }
@@ -147,12 +146,12 @@ PetscErrorCode ReadCoarse(DM dm, Coarse &m)
       if (k >= 0) cellEdges[k] = e, placed |= 1 << k;
       return b;
     };
-    const PetscInt *ccone = cone(c);
+    const PetscInt *ccone = plex.Cone(c);
     if (m.dim == 2)
       for (PetscInt k = 0; k < 3; ++k) place(ccone[k] - m.eS);
     else
       for (PetscInt f = 0; f < 4; ++f) {
-        const PetscInt *fcone = cone(ccone[f]);
+        const PetscInt *fcone = plex.Cone(ccone[f]);
         int             on    = 0;
         for (PetscInt k = 0; k < 3; ++k) on |= place(fcone[k] - m.eS);
         if (kOpposite[on] >= 0) m.cellFaces[4 * (c - m.cS) + kOpposite[on]] = ccone[f];

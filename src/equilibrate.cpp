@@ -249,6 +249,16 @@ void CellDataOf(const Space &space, const System &sys, const PetscScalar *u, Pet
   }
 }
 
+// The records of all cells.
+template <PetscInt dim>
+void CellRecords(const Space &space, const System &sys, const PetscScalar *u, CellRecord *cell, std::vector<CellExtra> &extra)
+{
+  for (PetscInt c = 0; c < space.NumCells(); ++c) {
+    PrefetchVertices(space, c + kCellsAhead, u);
+    CellDataOf<dim>(space, sys, u, c, cell[c], extra);
+  }
+}
+
 // The loads by the assembly's rules (AssembleCells, AssembleNeumann), per vertex of each cell, and the
 // cells' oscillations that come with them: where the assembly kept them, or evaluated again.
 void CellLoads(const Space &space, const Problem &problem, const System &sys, CellData &cd, std::vector<PetscReal> &oscillation, std::string &error)
@@ -282,11 +292,7 @@ PetscErrorCode ComputeCellData(const Space &space, const Problem &problem, const
   CellLoads(space, problem, sys, cd, oscillation, error);
   cd.cell.reset(new CellRecord[nc]);
   cd.extra.clear();
-  for (PetscInt c = 0; c < nc; ++c) {
-    PrefetchVertices(space, c + kCellsAhead, u);
-    if (dim == 2) CellDataOf<2>(space, sys, u, c, cd.cell[c], cd.extra);
-    else CellDataOf<3>(space, sys, u, c, cd.cell[c], cd.extra);
-  }
+  WithDim(dim, [&](auto D) { CellRecords<D>(space, sys, u, cd.cell.get(), cd.extra); });
   PetscInt coupled = (PetscInt)cd.extra.size(); // so far only the coupled cells have an entry
   for (const BoundaryFace &bf : space.boundary) {
     CellRecord &rec  = cd.cell[bf.cell];
@@ -879,8 +885,7 @@ void FluxTermsD(const Space &space, const System &sys, const PetscScalar *u, Rec
 }
 void FluxTerms(const Space &space, const System &sys, const PetscScalar *u, Reconstruction &r)
 {
-  if (space.dim == 2) FluxTermsD<2>(space, sys, u, r);
-  else FluxTermsD<3>(space, sys, u, r);
+  WithDim(space.dim, [&](auto D) { FluxTermsD<D>(space, sys, u, r); });
 }
 
 } // namespace

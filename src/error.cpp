@@ -88,8 +88,7 @@ PetscErrorCode ErrorAgainstExact(const Space &space, const Problem &problem, con
   PetscCall(DMGetLocalVector(space.dm, &loc));
   PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, loc));
   PetscCall(VecGetArrayRead(loc, &a));
-  if (space.dim == 2) ExactSums<2>(space, problem, sys, a, rule, sums, error);
-  else ExactSums<3>(space, problem, sys, a, rule, sums, error);
+  WithDim(space.dim, [&](auto D) { ExactSums<D>(space, problem, sys, a, rule, sums, error); });
   PetscCall(VecRestoreArrayRead(loc, &a));
   PetscCall(DMRestoreLocalVector(space.dm, &loc));
   MPI_Comm comm = PetscObjectComm((PetscObject)space.dm);
@@ -169,8 +168,7 @@ PetscErrorCode ErrorAgainstReference(const Space &coarse, Vec uH, const Space &f
   PetscCall(DMGlobalToLocal(fine.dm, uh, INSERT_VALUES, loch));
   PetscCall(VecGetArrayRead(locH, &aH));
   PetscCall(VecGetArrayRead(loch, &ah));
-  if (fine.dim == 2) ReferenceSums<2>(coarse, aH, fine, fineSys, ah, parent, rule, sums);
-  else ReferenceSums<3>(coarse, aH, fine, fineSys, ah, parent, rule, sums);
+  WithDim(fine.dim, [&](auto D) { ReferenceSums<D>(coarse, aH, fine, fineSys, ah, parent, rule, sums); });
   PetscCall(VecRestoreArrayRead(locH, &aH));
   PetscCall(VecRestoreArrayRead(loch, &ah));
   PetscCall(DMRestoreLocalVector(coarse.dm, &locH));

@@ -179,8 +179,7 @@ void CellTermsD(const Space &space, const System &sys, const Reconstruction &r, 
 void CellTerms(const Space &space, const System &sys, const Reconstruction &r, const PetscScalar *a, std::vector<PetscReal> &cellEta2, PetscReal *sums, std::vector<PetscReal> *vertexSums)
 {
   if (!r.fluxTerm.empty()) CellTermsP1(space, r, cellEta2, sums);
-  else if (space.dim == 2) CellTermsD<2>(space, sys, r, a, cellEta2, sums, vertexSums);
-  else CellTermsD<3>(space, sys, r, a, cellEta2, sums, vertexSums);
+  else WithDim(space.dim, [&](auto D) { CellTermsD<D>(space, sys, r, a, cellEta2, sums, vertexSums); });
 }
 
 // The terms the bounds are made of (global): N = |||u_h - v|||, F = ||kappa^{-1/2}(kappa grad v - sigma)||,

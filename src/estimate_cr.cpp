@@ -73,8 +73,7 @@ void FluxesAndVertexSumsD(const Space &space, const Problem &problem, const Syst
 }
 void FluxesAndVertexSums(const Space &space, const Problem &problem, const System &sys, const PetscScalar *a, Reconstruction &r, std::vector<PetscReal> &vdata, std::string &error)
 {
-  if (space.dim == 2) FluxesAndVertexSumsD<2>(space, problem, sys, a, r, vdata, error);
-  else FluxesAndVertexSumsD<3>(space, problem, sys, a, r, vdata, error);
+  WithDim(space.dim, [&](auto D) { FluxesAndVertexSumsD<D>(space, problem, sys, a, r, vdata, error); });
 }
 
 // The cells' gradients of the barycentric coordinates scaled by (kappa_T |T|)^{1/2}, (d+1) d values a

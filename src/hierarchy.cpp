@@ -252,7 +252,7 @@ static PetscErrorCode ProlongationMatrixD(const Space &coarse, const Space &fine
 }
 PetscErrorCode ProlongationMatrix(const Space &coarse, const Space &fine, const std::vector<PetscInt> &parent, Mat *P)
 {
-  return coarse.dim == 2 ? ProlongationMatrixD<2>(coarse, fine, parent, P) : ProlongationMatrixD<3>(coarse, fine, parent, P);
+  return WithDim(coarse.dim, [&](auto D) { return ProlongationMatrixD<D>(coarse, fine, parent, P); });
 }
 
 PetscErrorCode P1ToCRMatrix(const Space &p1, const Space &cr, Mat *Q)
@@ -336,8 +336,7 @@ PetscErrorCode RecordP1Transfer(const Space &coarse, DM fine, const std::vector<
   PetscCall(ISLocalToGlobalMappingGetIndices(coarse.ltog, &gc));
   r.cells.nb = stride / 2;
   r.cells.data.resize(n * stride);
-  if (dim == 2) RecordCells<2>(coarse, cells, parent, gc, r.cells.data);
-  else RecordCells<3>(coarse, cells, parent, gc, r.cells.data);
+  WithDim(dim, [&](auto D) { RecordCells<D>(coarse, cells, parent, gc, r.cells.data); });
   PetscCall(ISLocalToGlobalMappingRestoreIndices(coarse.ltog, &gc));
   r.coarseOwned  = coarse.numOwned;
   r.coarseGlobal = coarse.numGlobal;

@@ -103,34 +103,16 @@ void TriangleChildVertices(const FineNumbering &n, const OrientedEdge ed[3], con
   child[3] = {m[0], m[1], m[2]};
 }
 
-// The fine plex's cones and orientations written straight into its arrays: what DMPlexSetCone and
-// DMPlexSetConeOrientation write, without their checks and section look-ups on every call, which added up
-// over the millions of fine points. The chart starts at 0, the cone sizes are set and the arrays allocated (DMSetUp, which
-// zeroes the orientations).
-struct ConeArrays {
-  PetscInt       *cone, *ornt;
-  const PetscInt *off;
-  explicit ConeArrays(DM dm)
-  {
-    const DM_Plex *mesh = (const DM_Plex *)dm->data;
-    cone = mesh->cones, ornt = mesh->coneOrientations, off = mesh->coneSection->atlasOff;
-  }
-  template <size_t N>
-  void Set(PetscInt p, const PetscInt (&c)[N]) { std::copy(c, c + N, cone + off[p]); }
-  template <size_t N>
-  void Orient(PetscInt p, const PetscInt (&o)[N]) { std::copy(o, o + N, ornt + off[p]); }
-};
-
 PetscErrorCode SetEdgeHalves(DM coarse, DM fine, const FineNumbering &n)
 {
-  ConeArrays      cones(fine);
+  PlexCones       cones(fine);
   const PlexCones coarseCones(coarse);
   PetscFunctionBeginUser;
   for (PetscInt e = n.eS; e < n.eS + n.nE; ++e) {
     const PetscInt *cone = coarseCones.Cone(e);
     const PetscInt h0[2] = {n.Vertex(cone[0]), n.Mid(e)}, h1[2] = {n.Mid(e), n.Vertex(cone[1])};
-    cones.Set(n.Half(e, 0), h0);
-    cones.Set(n.Half(e, 1), h1);
+    cones.SetCone(n.Half(e, 0), h0);
+    cones.SetCone(n.Half(e, 1), h1);
   }
   PetscFunctionReturn(0);
 }
@@ -140,7 +122,7 @@ PetscErrorCode SetEdgeHalves(DM coarse, DM fine, const FineNumbering &n)
 // middle triangle reversed.
 PetscErrorCode SplitTriangles(DM coarse, DM fine, const FineNumbering &n)
 {
-  ConeArrays      fineCones(fine);
+  PlexCones       fineCones(fine);
   const PlexCones coarseCones(coarse);
   PetscFunctionBeginUser;
   for (PetscInt t = n.TriangleStart(); t < n.TriangleStart() + n.NumTriangles(); ++t) {
@@ -149,7 +131,7 @@ PetscErrorCode SplitTriangles(DM coarse, DM fine, const FineNumbering &n)
     PetscCall(TriangleEdges(coarseCones, n, t, ed, &cone));
     const PetscInt m[3]        = {n.Mid(cone[0]), n.Mid(cone[1]), n.Mid(cone[2])};
     const PetscInt inner[3][2] = {{m[0], m[2]}, {m[1], m[0]}, {m[2], m[1]}};
-    for (PetscInt j = 0; j < 3; ++j) fineCones.Set(n.TriangleEdge(t, j), inner[j]);
+    for (PetscInt j = 0; j < 3; ++j) fineCones.SetCone(n.TriangleEdge(t, j), inner[j]);
     const PetscInt o = 0, r = -1;
     const PetscInt cones[4][3] = {{ed[0].first, n.TriangleEdge(t, 0), ed[2].second},
                                   {ed[0].second, ed[1].first, n.TriangleEdge(t, 1)},
@@ -160,8 +142,8 @@ PetscErrorCode SplitTriangles(DM coarse, DM fine, const FineNumbering &n)
                                   {o, ed[1].orientation, ed[2].orientation},
                                   {r, r, r}};
     for (PetscInt k = 0; k < 4; ++k) {
-      fineCones.Set(n.TriangleChild(t, k), cones[k]);
-      fineCones.Orient(n.TriangleChild(t, k), ornts[k]);
+      fineCones.SetCone(n.TriangleChild(t, k), cones[k]);
+      fineCones.SetOrientation(n.TriangleChild(t, k), ornts[k]);
     }
   }
   PetscFunctionReturn(0);
@@ -219,7 +201,7 @@ PetscErrorCode SplitTetrahedra(DM coarse, DM fine, const FineNumbering &n, const
   std::vector<Known<2>> edges;
   std::vector<Known<3>> faces;
   CellVertexReader      reader;
-  ConeArrays            fineCones(fine);
+  PlexCones             fineCones(fine);
   const PlexCones       coarseCones(coarse);
   PetscFunctionBeginUser;
   PetscCall(reader.Init(coarse));
@@ -252,7 +234,7 @@ PetscErrorCode SplitTetrahedra(DM coarse, DM fine, const FineNumbering &n, const
     for (PetscInt a = 0; a < 4; ++a)
       for (PetscInt b = a + 1; b < 4; ++b) PetscCheck(mid[a][b] >= 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "refinement: cell %" PetscInt_FMT " has no edge between its vertices %" PetscInt_FMT " and %" PetscInt_FMT, c, a, b);
     const PetscInt diagonal[2] = {mid[0][1], mid[2][3]};
-    fineCones.Set(n.Diagonal(c), diagonal);
+    fineCones.SetCone(n.Diagonal(c), diagonal);
     edges.emplace_back(n.Diagonal(c), std::array<PetscInt, 2>{diagonal[0], diagonal[1]});
     const std::array<PetscInt, 3> inner[8] = {{mid[0][1], mid[0][2], mid[0][3]}, {mid[0][1], mid[1][2], mid[1][3]}, {mid[0][2], mid[1][2], mid[2][3]}, {mid[0][3], mid[1][3], mid[2][3]},
                                               {mid[0][1], mid[2][3], mid[0][2]}, {mid[0][1], mid[2][3], mid[0][3]}, {mid[0][1], mid[2][3], mid[1][2]}, {mid[0][1], mid[2][3], mid[1][3]}};
@@ -265,8 +247,8 @@ PetscErrorCode SplitTetrahedra(DM coarse, DM fine, const FineNumbering &n, const
         cone[k] = e->point;
         ornt[k] = e->verts[0] == want[0] ? 0 : -1;
       }
-      fineCones.Set(n.CellFace(c, j), cone);
-      fineCones.Orient(n.CellFace(c, j), ornt);
+      fineCones.SetCone(n.CellFace(c, j), cone);
+      fineCones.SetOrientation(n.CellFace(c, j), ornt);
       faces.emplace_back(n.CellFace(c, j), inner[j]);
     }
     // The children, each turned to the parent's handedness.
@@ -283,8 +265,8 @@ PetscErrorCode SplitTetrahedra(DM coarse, DM fine, const FineNumbering &n, const
         cone[f] = face->point;
         ornt[f] = orientation[3 * place(face->verts, want[0]) + place(face->verts, want[1])];
       }
-      fineCones.Set(n.Cell(c, k), cone);
-      fineCones.Orient(n.Cell(c, k), ornt);
+      fineCones.SetCone(n.Cell(c, k), cone);
+      fineCones.SetOrientation(n.Cell(c, k), ornt);
     }
   }
   PetscFunctionReturn(0);

@@ -22,12 +22,15 @@ PetscErrorCode ElementFromCommandLine(MPI_Comm comm, Element &e)
   PetscFunctionReturn(0);
 }
 
-bool ComputeCellGeometry(PetscInt dim, const PetscReal *X, CellGeometry &g) { return dim == 2 ? ComputeCellGeometryD<2>(X, g) : ComputeCellGeometryD<3>(X, g); }
+bool ComputeCellGeometry(PetscInt dim, const PetscReal *X, CellGeometry &g)
+{
+  return WithDim(dim, [&](auto D) { return ComputeCellGeometryD<D>(X, g); });
+}
 
 bool SimplexIsValid(PetscInt dim, const PetscReal *X)
 {
   PetscReal J[3][3], det;
-  return dim == 2 ? SimplexJacobian<2>(X, J, det) : SimplexJacobian<3>(X, J, det);
+  return WithDim(dim, [&](auto D) { return SimplexJacobian<D>(X, J, det); });
 }
 
 void Space::Point(PetscInt c, const PetscReal *lambda, PetscReal *x) const { SimplexPoint(dim, X(c), lambda, x); }

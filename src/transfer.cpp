@@ -43,8 +43,7 @@ void ForEachFineDofD(const Space &coarse, PetscInt numFine, const std::vector<Pe
 template <class Coords, class F>
 void ForEachFineDof(const Space &coarse, PetscInt numFine, const std::vector<PetscInt> &parent, Coords X, F f)
 {
-  if (coarse.dim == 2) ForEachFineDofD<2>(coarse, numFine, parent, X, f);
-  else ForEachFineDofD<3>(coarse, numFine, parent, X, f);
+  WithDim(coarse.dim, [&](auto D) { ForEachFineDofD<D>(coarse, numFine, parent, X, f); });
 }
 
 // Whether the point of barycentric coordinates lambda in coarse cell pc lies on coarse DOFs (at least

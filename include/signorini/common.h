@@ -5,6 +5,7 @@
 
 #include <functional>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 namespace signorini {
@@ -33,6 +34,16 @@ std::string ReadInt(const std::string &option, const std::string &text, PetscInt
 std::string ReadList(const std::string &option, const std::string &text, const std::function<std::string(const std::string &)> &item);
 // ReadInt for each entry of a comma-separated list ("1,3,4"; blank text gives an empty list).
 std::string ReadIntList(const std::string &option, const std::string &text, PetscInt min, PetscInt max, std::vector<PetscInt> &values);
+
+// f(D) with the dimension dim (2 or 3) as a compile-time constant D, a std::integral_constant: the cell
+// loops are templates on the dimension, so that their short loops unroll; this is where a variable
+// dimension picks one (WithDim(space.dim, [&](auto D) { return LoopD<D>(...); })).
+template <class F>
+decltype(auto) WithDim(PetscInt dim, F &&f)
+{
+  if (dim == 2) return f(std::integral_constant<PetscInt, 2>{});
+  return f(std::integral_constant<PetscInt, 3>{});
+}
 
 // Collective: the ownership ranges of a distributed index set, ranges[p] .. ranges[p + 1] on rank p, from
 // each rank's count of owned indices.

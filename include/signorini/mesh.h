@@ -77,11 +77,11 @@ public:
   PetscErrorCode Init(DM dm, bool strides = true);
   PetscInt       Dim() const { return dim_; }
   // As CellVertices(dm, p, dim, verts).
-  void Vertices(PetscInt p, PetscInt verts[4]) const { dim_ == 2 ? Vertices<2>(p, verts) : Vertices<3>(p, verts); }
+  void Vertices(PetscInt p, PetscInt verts[4]) const { WithDim(dim_, [&](auto D) { Vertices<D>(p, verts); }); }
   // Starts loading what Vertices(p) will read, for a loop over the cells in order: the cones of p's
   // faces (round 0) and, some cells later, once those are in cache, the cones of their edges (round 1,
   // tetrahedra only). The faces and edges of consecutive cells are not close to each other in memory.
-  void Prefetch(PetscInt p, int round) const { dim_ == 2 ? Prefetch<2>(p, round) : Prefetch<3>(p, round); }
+  void Prefetch(PetscInt p, int round) const { WithDim(dim_, [&](auto D) { Prefetch<D>(p, round); }); }
   // Both rounds at their distances ahead of cell p, for a loop over the cells [.., end) in order.
   void PrefetchAhead(PetscInt p, PetscInt end) const
   {

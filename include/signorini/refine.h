@@ -17,6 +17,7 @@
 
 #include <petscdmplex.h>
 
+#include <algorithm>
 #include <array>
 #include <functional>
 
@@ -35,15 +36,21 @@ struct CellTypeStratum {
   PetscInt       start, end;
 };
 PetscErrorCode SetCellTypeStrata(DM dm, const std::vector<CellTypeStratum> &strata);
-// A plex's cones and cone orientations read straight from its arrays: DMPlexGetCone's and
-// DMPlexGetConeOrientation's results without a call (and a section look-up) per point. Valid while the
-// plex's cones stay as they are.
+// A plex's cones and cone orientations straight in its arrays: read, DMPlexGetCone's and
+// DMPlexGetConeOrientation's results; written (a plex being built, its cone sizes set and its arrays
+// allocated by DMSetUp), what DMPlexSetCone and DMPlexSetConeOrientation write. Without a call, checks and
+// a section look-up per point, which add up over millions of points. Valid while the cone section stays.
 struct PlexCones {
-  const PetscInt *cones = nullptr, *ornts = nullptr, *off = nullptr;
+  PetscInt       *cones = nullptr, *ornts = nullptr;
+  const PetscInt *off    = nullptr;
   PetscInt        pStart = 0;
   explicit PlexCones(DM dm);
   const PetscInt *Cone(PetscInt p) const { return cones + off[p - pStart]; }
   const PetscInt *Orientation(PetscInt p) const { return ornts + off[p - pStart]; }
+  template <size_t N>
+  void SetCone(PetscInt p, const PetscInt (&c)[N]) { std::copy(c, c + N, cones + off[p - pStart]); }
+  template <size_t N>
+  void SetOrientation(PetscInt p, const PetscInt (&o)[N]) { std::copy(o, o + N, ornts + off[p - pStart]); }
 };
 // The orientation of a triangle listed by a cell in some order of its stored vertices: it depends only on
 // where the first two come from, orientation[3 * place of the first + place of the second] (PETSc asked

@@ -193,7 +193,7 @@ struct Space {
   // cells per vertex, and a second table would cost 96 bytes per DOF.
   const PetscInt *Dofs(PetscInt c) const { return &(element == Element::P1 ? cellVert : cellDof)[c * (dim + 1)]; }
   PetscInt        Vertex(PetscInt c, PetscInt k) const { return vStart + cellVert[c * (dim + 1) + k]; } // mesh point
-  Coords          X(PetscInt c) const { return dim == 2 ? XD<2>(c) : XD<3>(c); }
+  Coords          X(PetscInt c) const { return WithDim(dim, [&](auto D) { return XD<D>(c); }); }
   // X(c) and Grad with the dimension a constant: in the cell loops that know it, their loops unroll.
   template <PetscInt D>
   Coords XD(PetscInt c) const
@@ -230,7 +230,7 @@ struct Space {
     for (PetscInt i = 0; i < Nb(); ++i) v += PetscRealPart(a[Dofs(c)[i]]) * BasisValue(c, i, lambda);
     return v;
   }
-  void Grad(PetscInt c, const PetscScalar *a, const CellGeometry &g, PetscReal *grad) const { dim == 2 ? GradD<2>(c, a, g, grad) : GradD<3>(c, a, g, grad); }
+  void Grad(PetscInt c, const PetscScalar *a, const CellGeometry &g, PetscReal *grad) const { WithDim(dim, [&](auto D) { GradD<D>(c, a, g, grad); }); }
   // Physical point of barycentric coordinates lambda in cell c.
   void Point(PetscInt c, const PetscReal *lambda, PetscReal *x) const;
   // Where basis function i of cell c is 1: vertex i (P1) or the centroid of the face opposite it (CR).
