@@ -58,6 +58,11 @@ std::string CheckFiles(const std::vector<std::string> &tokens, const std::string
 
 int StartMPI(int *argc, char ***argv, const char *program)
 {
+  // PT-Scotch (the redistribution of adapted meshes, -mesh_partitioner ptscotch) spreads its partitioning
+  // over threads by default, and their timing changes the partition, and with it the solver's round-off,
+  // from one run to the next. One thread per rank makes a run reproducible and leaves the cores to the
+  // ranks; a user's own SCOTCH_PTHREAD_NUMBER is kept.
+  setenv("SCOTCH_PTHREAD_NUMBER", "1", 0);
   int provided, rank;
   MPI_Init_thread(argc, argv, PETSC_MPI_THREAD_REQUIRED, &provided); // the level PetscInitialize would ask for
   MPI_Comm_rank(MPI_COMM_WORLD, &rank);

@@ -9,7 +9,8 @@ namespace signorini {
 // that PetscInitialize will read as required, the files of -options_file and -options_file_yaml on the
 // command line, in PETSC_OPTIONS, and in such files themselves, can be opened. Returns 0, or 1 after
 // printing one line "PROGRAM: error: ..." on rank 0 and finalizing MPI. Names that PETSc expands ('~',
-// '$VARIABLE') are left to PETSc.
+// '$VARIABLE') are left to PETSc. Sets SCOTCH_PTHREAD_NUMBER=1 where the environment does not set it, so that
+// PT-Scotch's partitions, and the results that depend on them, are the same in every run.
 int StartMPI(int *argc, char ***argv, const char *program);
 
 } // namespace signorini
