@@ -110,8 +110,9 @@ struct CornerView {
   const PetscReal  *load; // int_T f psi_k at load[k]
   PetscReal         Load() const { return load[corner]; }
   PetscReal         Neumann(PetscInt j) const { return nm[j * stride]; }
-  // int_T phi_i . phi_j / kappa_T for faces i, j of the cell (for an uncoupled cell only i == j is asked)
-  PetscReal         Mass(PetscInt i, PetscInt j) const { return i == j ? rec->weight[i] : mass[MassPair(i, j)]; }
+  // int_T phi_i . phi_j / kappa_T for faces i, j of the cell; 0 for i != j in an uncoupled cell, which a
+  // coupled patch (one with a stretched cell among shape-regular ones) weighs by its diagonal as the others do
+  PetscReal         Mass(PetscInt i, PetscInt j) const { return i == j ? rec->weight[i] : mass ? mass[MassPair(i, j)] : 0.0; }
 };
 const PetscReal kNoNeumann[1] = {0};
 // A local patch matches faces by the local vertex numbers, a gathered one by the global ones.
