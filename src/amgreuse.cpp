@@ -1,5 +1,6 @@
 #include "signorini/amgreuse.h"
 #include "signorini/hierarchy.h"
+#include "signorini/kkthint.h"
 #include "signorini/options.h"
 #include "signorini/common.h"
 
@@ -14,11 +15,19 @@ PetscErrorCode AmgReuseOptionsFromCommandLine(MPI_Comm comm, AmgReuseOptions &o)
   PetscOptionsBegin(comm, "", "Linear solves of the Newton steps of the contact solve", "signorini");
   PetscCall(OptionBool(PetscOptionsObject, "-amg_reuse", "Keep the BoomerAMG set-up across Newton steps while the inactive set changes little (off: a new set-up every step)", o.enabled));
   PetscCall(OptionReal(PetscOptionsObject, "-vi_inexact_rtol", "Relative tolerance of the linear solves of Newton steps whose active set still moves; from a nested-iteration guess, of the first step only (0: every step to the KSP tolerance)", o.inexactRtol, 0, 1));
-  PetscCall(OptionString(PetscOptionsObject, "-vi_pc_type", "Preconditioner built for the inactive-set blocks of the contact solve (hypre, gamg, ..., or mg: geometric multigrid over the nested-iteration levels, -mg_levels_*/-mg_coarse_* options; -pc_type replaces the whole re-using shell)", o.innerType));
+  PetscCall(OptionString(PetscOptionsObject, "-vi_pc_type", "Preconditioner built for the inactive-set blocks of the contact solve (hypre, gamg, ..., or mg: geometric multigrid over the nested-iteration levels, -mg_levels_*/-mg_coarse_* options; -pc_type replaces the whole re-using shell; default mg, hypre on meshes of stretched cells)", o.innerType, &o.innerTypeGiven));
   PetscCall(OptionInt(PetscOptionsObject, "-amg_reuse_max_changed", "Set BoomerAMG up anew once more than this many DOFs left or joined the inactive set since its last set-up", o.maxChanged, 0, PETSC_MAX_INT));
   PetscOptionsEnd();
   // A tolerance of 1 would accept any step without a linear solve.
   if (!(o.inexactRtol < 1)) SIGNORINI_INPUT_ERROR(comm, "option -vi_inexact_rtol: must be in [0, 1), got %g", (double)o.inexactRtol);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ChoosePreconditioner(DM mesh, AmgReuseOptions &o, PetscReal *aspect)
+{
+  PetscFunctionBeginUser;
+  PetscCall(MeshAspectRatio(mesh, aspect));
+  if (!o.innerTypeGiven && o.innerType == PCMG && *aspect >= kStiffAspect) o.innerType = PCHYPRE;
   PetscFunctionReturn(0);
 }
 

@@ -1,5 +1,6 @@
 #include "signorini/kkthint.h"
 #include "signorini/common.h"
+#include "signorini/transfer.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,12 +8,6 @@
 namespace signorini {
 
 namespace {
-// Rows count as stiff from a kappa contrast of 100 or cells stretched 10 to 1 (their couplings then
-// differ by about 100): well below the contrasts (1e3 and more) and aspect ratios (1e3) where the
-// default stopping test has been seen to stop early, and well above what meshes of one material show
-// (aspect ratio about 2 for box meshes, below 10 for sound Gmsh meshes).
-constexpr PetscReal kStiffContrast = 100, kStiffAspect = 10;
-
 PetscReal AspectRatio(PetscInt dim, const PetscReal *X)
 {
   CellGeometry g;
@@ -31,6 +26,19 @@ PetscReal AspectRatio(PetscInt dim, const PetscReal *X)
   return edge * grad;
 }
 } // namespace
+
+PetscErrorCode MeshAspectRatio(DM mesh, PetscReal *aspect)
+{
+  MeshCells cells;
+  PetscInt  dim;
+  PetscFunctionBeginUser;
+  PetscCall(DMGetDimension(mesh, &dim));
+  PetscCall(cells.Init(mesh));
+  *aspect = 0;
+  for (PetscInt c = 0; c < cells.NumCells(); ++c) *aspect = std::max(*aspect, AspectRatio(dim, cells.X(c).x));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, aspect, 1, MPIU_REAL, MPI_MAX, PetscObjectComm((PetscObject)mesh)));
+  PetscFunctionReturn(0);
+}
 
 PetscErrorCode MeasureStiffness(const Space &space, const System &sys, PetscReal *kappaContrast, PetscReal *aspect)
 {

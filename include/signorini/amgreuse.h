@@ -52,11 +52,17 @@ struct AmgReuseOptions {
   PetscInt  maxChanged  = 2;    // -amg_reuse_max_changed: "changed" means more DOFs than this (global count)
   PetscReal inexactRtol = 1e-1; // -vi_inexact_rtol (0: every step to the KSP tolerances)
   std::string innerType = "mg";    // -vi_pc_type: the preconditioner built for a block (mg: BoomerAMG where there is no hierarchy)
+  bool      innerTypeGiven = false; // whether -vi_pc_type was given (else ChoosePreconditioner may change it)
   bool      goodStart   = false; // the initial guess carries its active set (nested iteration): only the
                                  // first step is inexact, later ones go to the KSP tolerance
   const Hierarchy *hierarchy = nullptr; // for -vi_pc_type mg: the transfers up to this solve's level
 };
 PetscErrorCode AmgReuseOptionsFromCommandLine(MPI_Comm comm, AmgReuseOptions &o);
+// The default preconditioner for the run's mesh: the geometric multigrid's pointwise smoother does not
+// smooth across very stretched cells (aspect ratio kStiffAspect and more, kkthint.h), where BoomerAMG,
+// which coarsens along the strong couplings, does; so there, unless -vi_pc_type was given, BoomerAMG
+// alone. Sets *aspect to the mesh's largest cell aspect ratio. Collective.
+PetscErrorCode ChoosePreconditioner(DM mesh, AmgReuseOptions &o, PetscReal *aspect);
 
 struct AmgReuseStats {
   PetscInt setups = 0, reuses = 0; // BoomerAMG set-ups, and Newton steps that re-used one

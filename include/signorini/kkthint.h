@@ -16,6 +16,15 @@
 
 namespace signorini {
 
+// Rows count as stiff from a kappa contrast of 100 or cells stretched 10 to 1 (their couplings then differ
+// by about 100): well below the contrasts (1e3 and more) and aspect ratios (1e3) where the default stopping
+// test has been seen to stop early, and well above what meshes of one material show (aspect ratio about 2
+// for box meshes, below 10 for sound Gmsh meshes).
+constexpr PetscReal kStiffContrast = 100, kStiffAspect = 10;
+
+// The largest cell aspect ratio of a mesh (as MeasureStiffness), from its coordinates alone. Collective.
+PetscErrorCode MeshAspectRatio(DM mesh, PetscReal *aspect);
+
 // The stiffness of the rows of A: max/min kappa over the cells, and the largest cell aspect ratio
 // (longest edge over smallest height: 2 for the right triangles of a box mesh). Collective.
 PetscErrorCode MeasureStiffness(const Space &space, const System &sys, PetscReal *kappaContrast, PetscReal *aspect);

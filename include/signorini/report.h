@@ -18,6 +18,9 @@ struct Report {
   PetscInt    dim = 0, refine = 0, coarseCells = 0, cells = 0, dofs = 0, dirichletDofs = 0, contactDofs = 0, ranks = 1, edgeCut = -1;
   std::vector<PetscInt> cellsPerRank;
   SolveResult solve;
+  std::string preconditioner;    // of the inactive-set blocks (-vi_pc_type, or as ChoosePreconditioner chose)
+  PetscReal   aspect = 0;        // the first mesh's largest cell aspect ratio, where it chose the preconditioner
+  bool        chosenForAspect = false; // BoomerAMG alone because of stretched cells (no -vi_pc_type given)
   std::vector<AdaptRow> adapt; // adaptive refinement: one row per mesh (empty without)
   bool        hasExact = false;
   ErrorNorms  error;
