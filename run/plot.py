@@ -23,7 +23,12 @@ def error_key(rows):
 
 
 def _errors_against(ax, rows, key, x):
-    """L2 and broken H1 errors of each element against x(row) on log-log axes."""
+    """L2 and broken H1 errors of each element against x(row) on log-log axes; without errors (no exact
+    solution, no reference) the estimate eta of the energy error."""
+    if not _series(rows, key):
+        for element, rs in _series(rows, "estimate").items():
+            ax.loglog([x(r) for r in rs], [r["estimate"]["eta"] for r in rs], MARKERS.get(element, "^") + "--", label="%s, estimate eta" % NAMES.get(element, element))
+        return
     for element, rs in _series(rows, key).items():
         xs, m, name = [x(r) for r in rs], MARKERS.get(element, "^"), NAMES.get(element, element)
         ax.loglog(xs, [r[key]["l2"] for r in rs], m + "-", label="%s, L2" % name)
@@ -46,13 +51,15 @@ def plot_error_vs_h(study, path, title):
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     _errors_against(ax, rows, key, lambda r: r["h"])
     hs = sorted({r["h"] for r in rows})
-    if hs:
+    measured = bool(_series(rows, key))
+    if hs and (measured or _series(rows, "estimate")):
         h0, h1 = hs[0], hs[-1]
-        ref = max(r[key]["h1_semi"] for r in rows if key in r)
+        ref = max(r[key]["h1_semi"] if measured else r["estimate"]["eta"] for r in rows if (key if measured else "estimate") in r)
         ax.loglog([h0, h1], [ref * (h0 / h1), ref], "k:", label="slope 1")
-        ref2 = max(r[key]["l2"] for r in rows if key in r)
-        ax.loglog([h0, h1], [ref2 * (h0 / h1) ** 2, ref2], "k-.", label="slope 2")
-    against = " against the reference" if key == "error_reference" else " against the exact solution"
+        if measured:
+            ref2 = max(r[key]["l2"] for r in rows if key in r)
+            ax.loglog([h0, h1], [ref2 * (h0 / h1) ** 2, ref2], "k-.", label="slope 2")
+    against = (" against the reference" if key == "error_reference" else " against the exact solution") if measured else " (estimated: no exact solution or reference)"
     _finish(fig, ax, path, title, "h", "error" + against)
 
 
@@ -60,7 +67,7 @@ def plot_work_precision(study, path, title):
     rows, key = study["rows"], error_key(study["rows"])
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     _errors_against(ax, rows, key, lambda r: max(r["total_seconds"], 1e-6))
-    _finish(fig, ax, path, title, "run time to solution [s] (mesh, set-up, assembly, solve)", "error")
+    _finish(fig, ax, path, title, "run time to solution [s] (mesh, set-up, assembly, solve)", "error" if _series(rows, key) else "estimated error eta")
 
 
 STRATEGY_COLORS = {"uniform": "tab:blue", "adaptive": "tab:red"}

@@ -50,13 +50,15 @@ static PetscErrorCode PrintTable(MPI_Comm comm, const std::vector<StudyRow> &row
 {
   std::ostringstream o;
   PetscFunctionBeginUser;
-  o << Format("%-4s %6s %10s %9s %9s %12s %6s %12s %6s %12s %6s %12s %6s %6s %6s %9s %9s %9s\n", "elem", "N", "h", "cells", "DOFs", "L2", "rate", "H1semi", "rate", "H1", "rate", "eta", "eta/E", "Newton", "KSP", "solve[s]", "total[s]", "peak[MB]");
+  o << Format("%-4s %6s %10s %9s %9s %12s %6s %12s %6s %12s %6s %12s %6s %6s %6s %6s %9s %9s %9s\n", "elem", "N", "h", "cells", "DOFs", "L2", "rate", "H1semi", "rate", "H1", "rate", "eta", "rate", "eta/E", "Newton", "KSP", "solve[s]", "total[s]", "peak[MB]");
   for (size_t i = 0; i < rows.size(); ++i) {
     const StudyRow   &r   = rows[i];
     const ErrorNorms &e   = r.hasReference ? r.reference : r.exact;
     const bool        has = r.hasReference || r.hasExact;
-    std::string       rates[3] = {"", "", ""};
-    if (i > 0 && rows[i - 1].element == r.element && has) {
+    std::string       rates[4] = {"", "", "", ""};
+    const bool        after    = i > 0 && rows[i - 1].element == r.element; // a finer level of the element
+    if (after && r.estimate.computed && rows[i - 1].estimate.computed) rates[3] = Format("%.2f", (double)Rate(rows[i - 1].estimate.eta, r.estimate.eta, rows[i - 1].h, r.h));
+    if (after && has) {
       const ErrorNorms &p = rows[i - 1].hasReference ? rows[i - 1].reference : rows[i - 1].exact;
       rates[0]            = Format("%.2f", (double)Rate(p.l2, e.l2, rows[i - 1].h, r.h));
       rates[1]            = Format("%.2f", (double)Rate(p.h1semi, e.h1semi, rows[i - 1].h, r.h));
@@ -64,8 +66,9 @@ static PetscErrorCode PrintTable(MPI_Comm comm, const std::vector<StudyRow> &row
     }
     // the efficiency index eta / energy error, against the exact solution or the reference
     const std::string eta = r.estimate.computed ? Format("%.5e", (double)r.estimate.eta) : "", index = r.estimate.computed && has ? Format("%.2f", (double)(r.estimate.eta / e.energy)) : "";
-    o << Format("%-4s %6d %10.4g %9d %9d %12.5e %6s %12.5e %6s %12.5e %6s %12s %6s %6d %6d %9.3f %9.3f %9.1f\n", r.element.c_str(), (int)r.N, (double)r.h, (int)r.cells, (int)r.dofs, has ? (double)e.l2 : NAN, rates[0].c_str(), has ? (double)e.h1semi : NAN, rates[1].c_str(),
-                has ? (double)e.h1 : NAN, rates[2].c_str(), eta.c_str(), index.c_str(), (int)r.solve.newtonIts, (int)r.solve.kspIts, r.solveSeconds, r.totalSeconds, r.peakRSS / 1048576.0);
+    const auto  err = [has](PetscReal v) { return has ? Format("%.5e", (double)v) : std::string("-"); };
+    o << Format("%-4s %6d %10.4g %9d %9d %12s %6s %12s %6s %12s %6s %12s %6s %6s %6d %6d %9.3f %9.3f %9.1f\n", r.element.c_str(), (int)r.N, (double)r.h, (int)r.cells, (int)r.dofs, err(e.l2).c_str(), rates[0].c_str(), err(e.h1semi).c_str(), rates[1].c_str(),
+                err(e.h1).c_str(), rates[2].c_str(), eta.c_str(), rates[3].c_str(), index.c_str(), (int)r.solve.newtonIts, (int)r.solve.kspIts, r.solveSeconds, r.totalSeconds, r.peakRSS / 1048576.0);
   }
   const bool carried = std::any_of(rows.begin(), rows.end(), [](const StudyRow &r) { return r.carried; });
   o << (carried ? "(each level from the one before; total: the run up to the level, mesh, set-up, solve and estimate of its element's levels so far)\n" : "(each level from u_D; total: mesh, set-up, solve and estimate of the level)\n");
@@ -104,7 +107,9 @@ PetscErrorCode ConvergenceStudy::Refine()
   MPI_Comm       comm = PetscObjectComm((PetscObject)base_);
   PetscLogDouble t0, t1;
   PetscFunctionBeginUser;
-  if (!problem_.HasExact() && o_.referenceRefine == 0) SIGNORINI_INPUT_ERROR(comm, "option -reference_refine: the scene has no exact solution, so the study needs a reference (-reference_refine m > 0)");
+  // Without an exact solution or a reference the rows measure the error by the estimate alone.
+  if (!problem_.HasExact() && o_.referenceRefine == 0 && !estimate_.enabled)
+    SIGNORINI_INPUT_ERROR(comm, "option -estimate none: the scene has no exact solution and the study no reference (-reference_refine m > 0), so nothing would measure its error");
   levels_.assign(Finest() + 1, nullptr);
   parent_.assign(Finest() + 1, {});
   meshSeconds_.assign(Finest() + 1, 0.0);

@@ -8,7 +8,8 @@
 - on the manufactured scene the errors against a fine reference agree with those against the exact solution
   to within the reference's own error (triangle inequality);
 - each level starts from the one before, with the same errors and estimates as levels solved from u_D;
-- run/study writes the CSV, JSON and PNG files and the rates are in range."""
+- run/study writes the CSV, JSON and PNG files and the rates are in range;
+- without an exact solution or a reference the study measures the error by the estimate alone."""
 import json
 import math
 import os
@@ -128,4 +129,27 @@ with tempfile.TemporaryDirectory() as tmp:
         r2 = math.log(rs[0]["error_exact"]["l2"] / rs[-1]["error_exact"]["l2"]) / math.log(rs[0]["h"] / rs[-1]["h"])
         r1 = math.log(rs[0]["error_exact"]["h1_semi"] / rs[-1]["error_exact"]["h1_semi"]) / math.log(rs[0]["h"] / rs[-1]["h"])
         c.check(1.8 <= r2 <= 2.3 and 0.9 <= r1 <= 1.2, "run/study %s rates: L2 %.2f, H1 %.2f" % (el, r2, r1))
+
+# A scene without an exact solution and a study without a reference: the error is measured by the estimate
+# alone (every row has eta, no row an error), eta falls like h (paper-5.1's solution is smooth enough for
+# rate 1 in the energy norm), and run/study writes its files and plots from it. With -estimate none too,
+# nothing would measure the error: one line.
+base = scene("paper-5.1") + ["-box_faces", "4", "-study_levels", "3"]
+s = study(base)
+for el in ["p1", "cr"]:
+    rs = [r for r in s["rows"] if r["element"] == el]
+    rate = math.log(rs[0]["estimate"]["eta"] / rs[-1]["estimate"]["eta"]) / math.log(rs[0]["h"] / rs[-1]["h"])
+    c.check(len(rs) == 3 and not any("error_exact" in r or "error_reference" in r for r in rs) and 0.9 <= rate <= 1.3,
+            "paper-5.1 %s without a reference: rows measured by eta alone, eta ~ h^%.2f" % (el, rate))
+_, out, _, _ = run(base)
+c.check(any(l.startswith("cr ") and l.split()[5] == "-" for l in out.splitlines()), "the table prints '-' for the errors it has not got")
+code, out, err, _ = run(base + ["-estimate", "none"], check=False)
+lines = [l for l in (out + err).splitlines() if "error" in l]
+c.check(code != 0 and len(lines) == 1 and "-estimate none" in lines[0] and "-reference_refine" in lines[0], "-estimate none without a reference: %s" % lines)
+with tempfile.TemporaryDirectory() as tmp:
+    p = subprocess.run([sys.executable, os.path.join(ROOT, "run", "study.py"), "paper-5.1", "-box_faces", "4", "-study_levels", "3", "--adapt-steps", "4", "--out", tmp],
+                       capture_output=True, text=True, env=dict(ENV, PYTHONDONTWRITEBYTECODE="1"))
+    files = sorted(os.listdir(tmp))
+    c.check(p.returncode == 0 and all(f in files for f in ["error-vs-h.png", "error-vs-time.png", "compare-vs-dofs.png", "compare.csv"]),
+            "run/study paper-5.1 without a reference: exit %d, wrote %s %s" % (p.returncode, files, p.stderr[-300:]))
 c.done()
