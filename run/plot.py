@@ -52,14 +52,16 @@ def plot_error_vs_h(study, path, title):
     _errors_against(ax, rows, key, lambda r: r["h"])
     hs = sorted({r["h"] for r in rows})
     measured = bool(_series(rows, key))
-    if hs and (measured or _series(rows, "estimate")):
-        h0, h1 = hs[0], hs[-1]
-        ref = max(r[key]["h1_semi"] if measured else r["estimate"]["eta"] for r in rows if (key if measured else "estimate") in r)
-        ax.loglog([h0, h1], [ref * (h0 / h1), ref], "k:", label="slope 1")
-        if measured:
-            ref2 = max(r[key]["l2"] for r in rows if key in r)
-            ax.loglog([h0, h1], [ref2 * (h0 / h1) ** 2, ref2], "k-.", label="slope 2")
-    against = (" against the reference" if key == "error_reference" else " against the exact solution") if measured else " (estimated: no exact solution or reference)"
+    # guides through the largest error (or estimate): slope 1 for the H1 seminorm, slope 2 for L2
+    guides = [("h1_semi", 1, "k:"), ("l2", 2, "k-.")] if measured else [("eta", 1, "k:")]
+    source = key if measured else "estimate"
+    for field, slope, style in guides if hs and _series(rows, source) else []:
+        h0, h1, ref = hs[0], hs[-1], max(r[source][field] for r in rows if source in r)
+        ax.loglog([h0, h1], [ref * (h0 / h1) ** slope, ref], style, label="slope %d" % slope)
+    if not measured:
+        against = " (estimated: no exact solution or reference)"
+    else:
+        against = " against the reference" if key == "error_reference" else " against the exact solution"
     _finish(fig, ax, path, title, "h", "error" + against)
 
 

@@ -23,11 +23,12 @@ PetscErrorCode AmgReuseOptionsFromCommandLine(MPI_Comm comm, AmgReuseOptions &o)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ChoosePreconditioner(DM mesh, AmgReuseOptions &o, PetscReal *aspect)
+PetscErrorCode ChoosePreconditioner(DM mesh, AmgReuseOptions &o, PetscReal *aspect, bool *chosen)
 {
   PetscFunctionBeginUser;
   PetscCall(MeshAspectRatio(mesh, aspect));
-  if (!o.innerTypeGiven && o.innerType == PCMG && *aspect >= kStiffAspect) o.innerType = PCHYPRE;
+  *chosen = !o.innerTypeGiven && o.innerType == PCMG && *aspect >= kStiffAspect;
+  if (*chosen) o.innerType = PCHYPRE;
   PetscFunctionReturn(0);
 }
 

@@ -140,11 +140,7 @@ static PetscErrorCode Run(MPI_Comm comm)
   PetscCall(DMGetDimension(mesh, &dim));
   // The contact solve's preconditioner for this mesh (stretched cells: BoomerAMG alone), chosen before a
   // strategy builds the multigrid's levels for it.
-  if (s.problem.HasContact()) {
-    const std::string given = s.solve.amgReuse.innerType;
-    PetscCall(ChoosePreconditioner(mesh, s.solve.amgReuse, &report.aspect));
-    report.chosenForAspect = s.solve.amgReuse.innerType != given;
-  }
+  if (s.problem.HasContact()) PetscCall(ChoosePreconditioner(mesh, s.solve.amgReuse, &report.aspect, &report.chosenForAspect));
   report.preconditioner = s.solve.amgReuse.innerType;
   if (s.study.levels > 0) {
     // A convergence study instead of a single run: the same scene on nested refinements of this mesh.

@@ -61,8 +61,9 @@ PetscErrorCode AmgReuseOptionsFromCommandLine(MPI_Comm comm, AmgReuseOptions &o)
 // The default preconditioner for the run's mesh: the geometric multigrid's pointwise smoother does not
 // smooth across very stretched cells (aspect ratio kStiffAspect and more, kkthint.h), where BoomerAMG,
 // which coarsens along the strong couplings, does; so there, unless -vi_pc_type was given, BoomerAMG
-// alone. Sets *aspect to the mesh's largest cell aspect ratio. Collective.
-PetscErrorCode ChoosePreconditioner(DM mesh, AmgReuseOptions &o, PetscReal *aspect);
+// alone. Sets *aspect to the mesh's largest cell aspect ratio and *chosen to whether it chose BoomerAMG
+// so. Collective.
+PetscErrorCode ChoosePreconditioner(DM mesh, AmgReuseOptions &o, PetscReal *aspect, bool *chosen);
 
 struct AmgReuseStats {
   PetscInt setups = 0, reuses = 0; // BoomerAMG set-ups, and Newton steps that re-used one
