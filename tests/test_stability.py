@@ -6,7 +6,8 @@ checked against the report's own uniform rows rather than against fixed numbers:
     finest uniform level of the same element, the tolerance it was given, and eta falls like DOFs^s, s <= -0.45;
   * the time comparison row measures the error of the uniform run it times (the study's finest level) against
     an adaptive refinement of that run's mesh: no more than the run's own estimate plus the reference's (the
-    triangle inequality, with eta bounding each true error), and a positive time ratio (its size is reported,
+    triangle inequality, with eta bounding each true error), the adaptive error (against the adaptive run
+    carried further) falls like DOFs^s, s <= -0.45, and a positive time ratio (its size is reported,
     not tested: timing is never a pass/fail test)."""
 import csv
 import os
@@ -41,5 +42,6 @@ with tempfile.TemporaryDirectory() as tmp:
         c.check(t["dofs"] == study[0]["dofs"] and float(t["energy_error"]) <= bound,
                 "%s time row: uniform %s DOFs (study %s), error %s <= eta + reference eta %.4e" % (element, t["dofs"], study[0]["dofs"], t["energy_error"], bound))
         c.check(float(t["time_ratio"]) > 0, "%s time row: ratio %s" % (element, t["time_ratio"]))
+        c.check(t["slope_error"] != "" and float(t["slope_error"]) <= -0.45, "%s time row: adaptive error ~ DOFs^%s, <= -0.45" % (element, t["slope_error"]))
         c.check(t["status"] in ("ok", "above target"), "%s time row: status %s (%s)" % (element, t["status"], t["notes"]))
 c.done()
