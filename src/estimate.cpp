@@ -257,17 +257,19 @@ PetscErrorCode EstimateFromReconstruction(const Space &space, const Problem &pro
   if (r.oscillation.empty()) PetscCall(CellOscillation(space, problem, sys, r.oscillation, error));
   AddNeumannOscillation(space, problem, sys, r.oscillation, error);
   PetscCall(CheckAll(comm, error.empty(), error));
-  std::vector<PetscReal> vertexSums(r.companion.empty() ? 0 : 2 * r.companion.size(), 0.0);
-  for (bool again = true; again;) { // a second time when ImproveCompanion changed v
+  // Decided by the element, the same on every rank: ImproveCompanion is collective, and a rank without
+  // cells has an empty companion.
+  bool                   improve = space.element == Element::CR;
+  std::vector<PetscReal> vertexSums(improve ? 2 * r.companion.size() : 0, 0.0);
+  for (bool again = true; again; improve = false) { // a second time when ImproveCompanion changed v
     e.cellEta2.assign(space.NumCells(), 0.0);
     std::fill(sums, sums + kNumSums, 0.0);
     sums[kGamma] = ContactTerm(space, problem, sys, r, a, e.cellEta2, error);
-    CellTerms(space, sys, r, a, e.cellEta2, sums, vertexSums.empty() ? nullptr : &vertexSums);
+    CellTerms(space, sys, r, a, e.cellEta2, sums, improve ? &vertexSums : nullptr);
     PetscCall(CheckAll(comm, error.empty(), error));
     PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, sums, kNumSums, MPIU_REAL, MPI_SUM, comm));
     again = false;
-    if (!vertexSums.empty()) PetscCall(ImproveCompanion(space, sys, vertexSums, sums[kN2], r, again));
-    vertexSums.clear();
+    if (improve) PetscCall(ImproveCompanion(space, sys, vertexSums, sums[kN2], r, again));
   }
   PetscCall(VecRestoreArrayRead(loc, &a));
   PetscCall(DMRestoreLocalVector(space.dm, &loc));
