@@ -93,7 +93,11 @@ PetscErrorCode AdaptiveRefinement::Next(Step &step, bool &more)
     PetscCheck(more, PetscObjectComm((PetscObject)mesh_), PETSC_ERR_PLIB, "nested iteration ended before the first mesh");
     PetscFunctionReturn(0);
   }
-  if (++step_ > 0) PetscCall(Refine());
+  if (++step_ > 0) {
+    PetscCall(StagePush(Stage::Adapt));
+    PetscCall(Refine());
+    PetscCall(StagePop(Stage::Adapt));
+  }
   step = Step{mesh_, options_};
   if (multigrid_) step.options.solve.amgReuse.hierarchy = &hierarchy_; // complete for this step once Carry ran
   if (adapt_.solveToFraction > 0 && step_ > 0 && !(adaptEnd_ >= 0 && step_ > adaptEnd_)) PetscCall(SolveToDiscretization(step.options));
@@ -214,6 +218,7 @@ PetscErrorCode AdaptiveRefinement::Carry(MeshSolution &cur, bool &carried)
   if (multigrid_) PetscCall(MultigridTime([&] { return MultigridCarry(cur.space); }));
   carried = step_ > 0;
   if (!carried) PetscFunctionReturn(0);
+  PetscCall(StagePush(Stage::Adapt));
   PetscCall(PetscTime(&t0));
   if (problem_.HasContact()) {
     PetscCall(VecDuplicate(cur.u, &lowerh));
@@ -223,6 +228,7 @@ PetscErrorCode AdaptiveRefinement::Carry(MeshSolution &cur, bool &carried)
   PetscCall(VecDestroy(&lowerh));
   carried_ = CellValues();
   PetscCall(SecondsSince(PetscObjectComm((PetscObject)cur.u), t0, &seconds));
+  PetscCall(StagePop(Stage::Adapt));
   rows.back().transferSeconds += seconds;
   PetscFunctionReturn(0);
 }
@@ -276,9 +282,11 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
   row.reference = adaptEnd_ >= 0 && step_ > adaptEnd_;
   stop_         = adaptEnd_ >= 0 && step_ >= adaptEnd_ + adapt_.referenceSteps;
   if (!stop_) {
+    PetscCall(StagePush(Stage::Adapt));
     PetscCall(PetscTime(&t0));
     PetscCall(MarkDoerfler(comm, eta2, adapt_.theta, marked_, &row.marked));
     PetscCall(SecondsSince(comm, t0, &row.markSeconds));
+    PetscCall(StagePop(Stage::Adapt));
     stop_ = row.marked == 0; // a zero estimate: nothing to refine
   }
   rows.push_back(row);

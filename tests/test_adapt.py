@@ -57,6 +57,12 @@ for ranks, extra in [(1, []), (2, []), (2, ["-adapt_imbalance", "1"])]:
     c.check(s["cells"] == rows[-1]["cells"] and s["dofs"] == rows[-1]["dofs"] and sum(s["cells_per_rank"]) == s["cells"],
             "%s: the summary describes the last mesh (%d cells, %d DOFs)" % (tag, s["cells"], s["dofs"]))
     kkt_ok(tag, s)
+    # Stage times are exclusive (a stage pushed inside another pauses it), so they add up to at most the
+    # run's total; the work between meshes has its own stage.
+    t = s["time"]
+    stages = sum(v for k, v in t.items() if k != "total")
+    c.check(t["adapt"] > 0 and all(v >= 0 for v in t.values()) and stages <= t["total"] * (1 + 1e-9),
+            "%s: stage times (adapt %.3f s) add up to %.3f s <= total %.3f s" % (tag, t["adapt"], stages, t["total"]))
     runs[(ranks, bool(extra))] = s
     if extra:
         c.check(any(r["redistributed"] for r in rows[:-1]), "%s: the refined meshes are redistributed" % tag)

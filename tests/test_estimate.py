@@ -150,6 +150,7 @@ for el in ["cr", "p1"]:
 _, out, _, s = run(scene("manufactured-2d") + ["-space", "cr", "-estimate", "none"])
 c.check("estimate of the energy error" not in out and "efficiency" not in out, "-estimate none: no estimate printed")
 c.check("estimate" not in s and s["time"]["estimate"] == 0, "-estimate none: no estimate in the JSON, Estimate stage time %g" % s["time"]["estimate"])
+c.check(s["time"]["adapt"] == 0, "a run without -adapt_steps: Adapt stage time %g" % s["time"]["adapt"])
 _, out, _, s = run(scene("manufactured-2d") + ["-space", "cr"])
 c.check("estimate of the energy error" in out and "efficiency index" in out and s["time"]["estimate"] > 0, "by default the estimate is printed with its efficiency index")
 

@@ -1,12 +1,15 @@
 // The steps of the method as PetscLogStages (so -log_view breaks the run down by step) together with
-// their wall-clock times, which the summary reports.
+// their wall-clock times, which the summary reports. Adapt is an adaptive step's own work between two
+// meshes (marking, refinement, redistribution, the transfer of the solution). A stage pushed inside
+// another (the multigrid's transfers, counted as the solve's, are built during the refinement) pauses
+// it, as in -log_view, so the stages' times add up to the run's.
 #pragma once
 
 #include <petscsys.h>
 
 namespace signorini {
 
-enum class Stage { Mesh, Distribute, Refine, Setup, Assemble, Solve, Estimate, Error, Output, Count };
+enum class Stage { Mesh, Distribute, Refine, Setup, Assemble, Solve, Estimate, Adapt, Error, Output, Count };
 
 const char    *StageName(Stage s);
 PetscErrorCode StagesRegister();
