@@ -108,6 +108,7 @@ def main():
     print("\nTables and plots: %s/ and %s/" % (out1, out2))
     print("  study.csv, study.json: the tables; error-vs-h.png: convergence; error-vs-time.png: error against run time;")
     print("  solution.png: u_h on N = 64; contact.png: u_h and the contact pressure along Gamma_C with the critical points;")
+    print("  and in %s/ only (the adaptive run uses the centroid rule):" % out1)
     print("  compare.csv, compare.json, compare-vs-dofs.png, compare-vs-time.png: uniform against adaptive refinement;")
     print("  adapted-mesh-p1.png, adapted-mesh-cr.png: the last adapted meshes with their indicators and the contact set")
     sys.exit(0 if ok else 1)
