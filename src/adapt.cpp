@@ -93,11 +93,7 @@ PetscErrorCode AdaptiveRefinement::Next(Step &step, bool &more)
     PetscCheck(more, PetscObjectComm((PetscObject)mesh_), PETSC_ERR_PLIB, "nested iteration ended before the first mesh");
     PetscFunctionReturn(0);
   }
-  if (++step_ > 0) {
-    PetscCall(StagePush(Stage::Adapt));
-    PetscCall(Refine());
-    PetscCall(StagePop(Stage::Adapt));
-  }
+  if (++step_ > 0) PetscCall(Refine());
   step = Step{mesh_, options_};
   if (multigrid_) step.options.solve.amgReuse.hierarchy = &hierarchy_; // complete for this step once Carry ran
   if (adapt_.solveToFraction > 0 && step_ > 0 && !(adaptEnd_ >= 0 && step_ > adaptEnd_)) PetscCall(SolveToDiscretization(step.options));
@@ -130,6 +126,7 @@ PetscErrorCode AdaptiveRefinement::Refine()
   std::vector<PetscInt> parent;
   Vec                   lowerH = nullptr;
   PetscFunctionBeginUser;
+  PetscCall(StagePush(Stage::Adapt));
   PetscCall(PetscTime(&t0));
   PetscCall(RefineMarked(mesh_, marked_, adapt_.refinement, &fine, &parent));
   PetscCall(SecondsSince(comm, t0, &row.refineSeconds));
@@ -180,7 +177,7 @@ PetscErrorCode AdaptiveRefinement::Refine()
     if (dist) {
       PetscCall(MigrateCellValues(mesh_, migration, dist, carried_));
       if (multigrid_) { // the cells leave their parents' ranks: the transfer is recorded on them and travels along
-        PetscCall(MultigridTime([&]() -> PetscErrorCode {
+        PetscCall(TimeIn(Stage::Solve, multigridSeconds_, [&]() -> PetscErrorCode {
           PetscCall(RecordP1Transfer(*coarseP1_, mesh_, mgParent_, record_));
           mgParent_.clear();
           coarseP1_ = nullptr;
@@ -195,6 +192,7 @@ PetscErrorCode AdaptiveRefinement::Refine()
     }
     PetscCall(SecondsSince(comm, t0, &row.redistributeSeconds));
   }
+  PetscCall(StagePop(Stage::Adapt));
   PetscFunctionReturn(0);
 }
 
@@ -207,29 +205,24 @@ void AdaptiveRefinement::StartNested(MeshLevels &levels, const NestedOptions &o)
 
 PetscErrorCode AdaptiveRefinement::Carry(MeshSolution &cur, bool &carried)
 {
-  PetscLogDouble t0;
-  Vec            lowerh = nullptr;
-  double         seconds;
   PetscFunctionBeginUser;
   if (nested_) { // nested iteration builds the multigrid's transfers as it goes
     PetscCall(nested_->Carry(cur, carried));
     PetscFunctionReturn(0);
   }
-  if (multigrid_) PetscCall(MultigridTime([&] { return MultigridCarry(cur.space); }));
+  if (multigrid_) PetscCall(TimeIn(Stage::Solve, multigridSeconds_, [&] { return MultigridCarry(cur.space); }));
   carried = step_ > 0;
   if (!carried) PetscFunctionReturn(0);
-  PetscCall(StagePush(Stage::Adapt));
-  PetscCall(PetscTime(&t0));
-  if (problem_.HasContact()) {
-    PetscCall(VecDuplicate(cur.u, &lowerh));
-    PetscCall(ContactLowerBound(cur.space, problem_, lowerh));
-  }
-  PetscCall(ApplyCellValues(cur.space, carried_, lowerh, cur.u));
-  PetscCall(VecDestroy(&lowerh));
-  carried_ = CellValues();
-  PetscCall(SecondsSince(PetscObjectComm((PetscObject)cur.u), t0, &seconds));
-  PetscCall(StagePop(Stage::Adapt));
-  rows.back().transferSeconds += seconds;
+  PetscCall(TimeIn(Stage::Adapt, rows.back().transferSeconds, [&]() -> PetscErrorCode {
+    Vec lowerh = nullptr;
+    if (problem_.HasContact()) {
+      PetscCall(VecDuplicate(cur.u, &lowerh));
+      PetscCall(ContactLowerBound(cur.space, problem_, lowerh));
+    }
+    PetscCall(ApplyCellValues(cur.space, carried_, lowerh, cur.u));
+    carried_ = CellValues();
+    return VecDestroy(&lowerh);
+  }));
   PetscFunctionReturn(0);
 }
 
@@ -282,11 +275,7 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
   row.reference = adaptEnd_ >= 0 && step_ > adaptEnd_;
   stop_         = adaptEnd_ >= 0 && step_ >= adaptEnd_ + adapt_.referenceSteps;
   if (!stop_) {
-    PetscCall(StagePush(Stage::Adapt));
-    PetscCall(PetscTime(&t0));
-    PetscCall(MarkDoerfler(comm, eta2, adapt_.theta, marked_, &row.marked));
-    PetscCall(SecondsSince(comm, t0, &row.markSeconds));
-    PetscCall(StagePop(Stage::Adapt));
+    PetscCall(TimeIn(Stage::Adapt, row.markSeconds, [&] { return MarkDoerfler(comm, eta2, adapt_.theta, marked_, &row.marked); }));
     stop_ = row.marked == 0; // a zero estimate: nothing to refine
   }
   rows.push_back(row);
@@ -364,20 +353,18 @@ PetscErrorCode AdaptiveRefinement::MultigridCarry(const Space &space)
   PetscFunctionReturn(0);
 }
 
-// Runs f, a part of the multigrid's set-up, in the Solve stage, and adds its wall time (max over ranks) to
-// the next solve's: the transfers are the preconditioner's data, as BoomerAMG's set-up is, and nested
-// iteration counts their assembly in the solve too.
-PetscErrorCode AdaptiveRefinement::MultigridTime(const std::function<PetscErrorCode()> &f)
+// Runs f in stage s and adds its wall time (max over ranks) to seconds.
+PetscErrorCode AdaptiveRefinement::TimeIn(Stage s, double &seconds, const std::function<PetscErrorCode()> &f)
 {
   PetscLogDouble t0;
-  double         seconds;
+  double         dt;
   PetscFunctionBeginUser;
   PetscCall(PetscTime(&t0));
-  PetscCall(StagePush(Stage::Solve));
+  PetscCall(StagePush(s));
   PetscCall(f());
-  PetscCall(StagePop(Stage::Solve));
-  PetscCall(SecondsSince(PetscObjectComm((PetscObject)mesh_), t0, &seconds));
-  multigridSeconds_ += seconds;
+  PetscCall(StagePop(s));
+  PetscCall(SecondsSince(PetscObjectComm((PetscObject)mesh_), t0, &dt));
+  seconds += dt;
   PetscFunctionReturn(0);
 }
 

@@ -18,6 +18,11 @@ def run(args, ranks=1, check=True):
     return r.returncode, r.stdout, r.stderr, r.summary
 
 
+def rel(a, b):
+    """Relative difference of a and b."""
+    return abs(a - b) / max(abs(a), abs(b), 1e-300)
+
+
 def rate(hs, errs):
     """Least-squares slope of log(err) against log(h)."""
     import math

@@ -26,14 +26,10 @@ import math
 import os
 import tempfile
 
-from harness import Checker, run, scene
+from harness import Checker, rel, run, scene
 
 c = Checker()
 tight = ["-ksp_rtol", "1e-13", "-snes_rtol", "1e-13"]
-
-
-def rel(a, b):
-    return abs(a - b) / max(abs(a), abs(b), 1e-300)
 
 
 # 1. Linear u (see test_exact_linear.py for the scenes): |||u||| is |grad u| on the unit square / cube.

@@ -6,7 +6,7 @@ MPI_ERR_TRUNCATE or hung. Each run has a time limit, so a hang fails the test in
 import os
 import tempfile
 
-from harness import Checker, launch, scene
+from harness import Checker, launch, rel, scene
 
 c = Checker()
 tight = ["-ksp_rtol", "1e-13", "-snes_rtol", "1e-13"]
@@ -19,11 +19,8 @@ cases = [
 strategies = [("one mesh", []), ("adaptive", ["-adapt_steps", "2"])]
 
 
-def rel(a, b):
-    return abs(a - b) / max(abs(a), abs(b), 1e-300)
-
-
-def run(args, ranks):
+def summary(args, ranks):
+    """The run's summary, or None (its error printed) if it failed; beyond 120 s it raises (the test fails)."""
     r = launch.run(args, ranks, summary=True, timeout=120)
     if r.returncode != 0 or r.summary is None:
         print("exit %d: %s" % (r.returncode, r.error_line()))
@@ -36,9 +33,9 @@ with tempfile.TemporaryDirectory() as tmp:
             for how, extra in strategies:
                 tag = "%s %s %s on %d ranks" % (name, space, how, ranks)
                 args = scene(name) + mesh + ["-space", space] + extra + tight
-                s1 = run(args, 1)
+                s1 = summary(args, 1)
                 out = ["-output", os.path.join(tmp, "u.h5")] if how == "one mesh" else []
-                sn = run(args + out, ranks)
+                sn = summary(args + out, ranks)
                 c.check(s1 is not None and sn is not None, "%s: exit 0 on 1 and on %d ranks" % (tag, ranks))
                 if s1 is None or sn is None:
                     continue

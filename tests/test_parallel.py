@@ -1,6 +1,6 @@
 """The same scene on 1 and on 2 MPI ranks (METIS partition) gives the same energy and errors to 1e-10
 relative (independent computation: the two runs share nothing but the input)."""
-from harness import Checker, run, scene
+from harness import Checker, rel, run, scene
 
 c = Checker()
 tight = ["-ksp_rtol", "1e-13", "-snes_rtol", "1e-13"]
@@ -9,10 +9,6 @@ cases = [
     ("manufactured-2d", ["-box_faces", "4", "-refine", "2"]),
     ("manufactured-3d", ["-box_faces", "2", "-refine", "2"]),
 ]
-
-
-def rel(a, b):
-    return abs(a - b) / max(abs(a), abs(b), 1e-300)
 
 
 for name, extra in cases:

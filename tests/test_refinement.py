@@ -5,7 +5,7 @@ in 2D and 3D (independent computation: PETSc's refinement shares no code with ou
 the meshes themselves). Gmsh meshes with "Cell Sets" check that the refined labels carry kappa's cell sets."""
 import os
 
-from harness import ROOT, Checker, run, scene
+from harness import ROOT, Checker, rel, run, scene
 
 c = Checker()
 # Solver tolerances tight enough that the two solutions differ by less than 1e-10 of what is compared; the
@@ -25,10 +25,6 @@ cases = [
     ("manufactured-3d", scene("manufactured-3d") + ["-box_faces", "2", "-refine", "2"] + tighter + symmetric),
     ("gmsh cube, kappa by cell set", scene("manufactured-3d") + ["-mesh_file", cube, "-refine", "1", "-kappa", "cell_set == 1 ? 1 : 10"] + tighter + symmetric),
 ]
-
-
-def rel(a, b):
-    return abs(a - b) / max(abs(a), abs(b), 1e-300)
 
 
 for name, args in cases:

@@ -25,6 +25,7 @@
 #include "signorini/hierarchy.h"
 #include "signorini/localrefine.h"
 #include "signorini/nested.h"
+#include "signorini/stages.h"
 #include "signorini/strategy.h"
 #include "signorini/transfer.h"
 
@@ -135,9 +136,12 @@ private:
   const Space          *coarseP1_ = nullptr; // the coarse P1 space (p1_ or a kept step's), until the transfer
   std::vector<PetscInt> mgParent_;  // with it: the parent of every cell of mesh_
   TransferRecord        record_;    // or the record (mesh_ redistributed)
-  double                multigridSeconds_ = 0; // its set-up for the next solve, counted as that solve's time
+  // its set-up for the next solve, counted as that solve's time and in the Solve stage (the transfers are
+  // the preconditioner's data, as BoomerAMG's set-up is, and nested iteration counts their assembly in the
+  // solve too)
+  double                multigridSeconds_ = 0;
   PetscErrorCode        MultigridCarry(const Space &space);
-  PetscErrorCode        MultigridTime(const std::function<PetscErrorCode()> &f);
+  PetscErrorCode        TimeIn(Stage s, double &seconds, const std::function<PetscErrorCode()> &f);
   PetscErrorCode        MultigridLevel(Mat P, PetscInt dofs);
 };
 
