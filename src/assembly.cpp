@@ -82,16 +82,60 @@ static PetscErrorCode CellCoefficients(const Space &space, const Problem &proble
   PetscFunctionReturn(0);
 }
 
-PetscReal SimplexDiameter(PetscInt dim, const PetscReal *X)
+// The constant is min(h_T, ||B||_2) / pi for B the matrix of an affine map F(x) = x_0 + B x of the reference
+// simplex K onto T: the triangle {0 <= x <= y <= 1} (half a unit square) or Kuhn's tetrahedron
+// {0 <= x <= y <= z <= 1} (a sixth of a unit cube). K's mirror images tile the square or cube, so a Neumann
+// eigenfunction of K, extended by reflection, is one of the square or cube: K's smallest non-zero Neumann
+// eigenvalue is pi^2, its Poincare constant 1 / pi (cos(pi x) + cos(pi y) (+ cos(pi z)) attains it). With
+// v = w o F, ||w - w_T||_T^2 = |det B| ||v - v_K||_K^2 <= |det B| / pi^2 ||grad v||_K^2 and
+// |grad v| <= ||B|| |grad w o F|, hence ||w - w_T||_T <= ||B|| / pi ||grad w||_T. B's columns are the edges of
+// a path through T's vertices (K's vertices in order (0,0), (0,1), (1,1), or (0,0,0), (0,0,1), (0,1,1),
+// (1,1,1)), so ||B||^2 is the largest eigenvalue of the Gram matrix of three (two) edges of a path, which
+// the squared edge lengths give (u.v = (|u + v|^2 - |u|^2 - |v|^2) / 2). On the right isosceles triangles
+// and Kuhn tetrahedra of box meshes this is h_T / sqrt(2) or h_T / sqrt(3) (less gained on bisections); on
+// equilateral cells Payne-Weinberger's h_T is smaller and taken.
+PetscReal PoincareConstant(PetscInt dim, const PetscReal *X)
 {
-  PetscReal h2 = 0;
+  PetscReal L[4][4] = {{0}}, h2 = 0; // squared edge lengths, the diameter's square
   for (PetscInt i = 0; i <= dim; ++i)
     for (PetscInt j = i + 1; j <= dim; ++j) {
       PetscReal l2 = 0;
       for (PetscInt d = 0; d < dim; ++d) l2 += (X[i * dim + d] - X[j * dim + d]) * (X[i * dim + d] - X[j * dim + d]);
-      h2 = std::max(h2, l2);
+      L[i][j] = L[j][i] = l2;
+      h2                = std::max(h2, l2);
     }
-  return std::sqrt(h2);
+  PetscReal norm2 = h2;
+  if (dim == 2) { // the three paths (by their middle vertex m): a 2 x 2 Gram matrix, its eigenvalue exactly
+    for (PetscInt m = 0; m < 3; ++m) {
+      const PetscInt  i = (m + 1) % 3, j = (m + 2) % 3;
+      const PetscReal p = L[m][i], q = L[m][j], r = 0.5 * (p + q - L[i][j]);
+      norm2 = std::min(norm2, 0.5 * (p + q) + std::sqrt(0.25 * (p - q) * (p - q) + r * r));
+    }
+    return std::sqrt(norm2) / M_PI;
+  }
+  // Tetrahedra: of the twelve paths, the one whose edges have the least sum of squares (any path gives a
+  // bound; for Kuhn's tetrahedra this is the one of three orthogonal edges, and choosing it costs a few
+  // additions where bounding all twelve cost five times the diameter). Its Gram matrix's largest eigenvalue
+  // is bounded above by Collatz-Wielandt's max_i (|G| w)_i / w_i with w = |G| (1, 1, 1) (exact where G is
+  // diagonal).
+  static constexpr int kPath[12][4] = {{0, 1, 2, 3}, {0, 1, 3, 2}, {0, 2, 1, 3}, {0, 2, 3, 1}, {0, 3, 1, 2}, {0, 3, 2, 1}, {1, 0, 2, 3}, {1, 0, 3, 2}, {1, 2, 0, 3}, {1, 3, 0, 2}, {2, 0, 1, 3}, {2, 1, 0, 3}};
+  PetscInt  k     = 0;
+  PetscReal trace = PETSC_MAX_REAL;
+  for (PetscInt i = 0; i < 12; ++i) {
+    const int      *p = kPath[i];
+    const PetscReal t = L[p[0]][p[1]] + L[p[1]][p[2]] + L[p[2]][p[3]];
+    k                 = t < trace ? i : k;
+    trace             = std::min(trace, t);
+  }
+  const int      *p   = kPath[k];
+  const PetscReal g11 = L[p[0]][p[1]], g22 = L[p[1]][p[2]], g33 = L[p[2]][p[3]];
+  const PetscReal g12 = 0.5 * (L[p[0]][p[2]] - g11 - g22), g23 = 0.5 * (L[p[1]][p[3]] - g22 - g33);
+  const PetscReal g13 = 0.5 * (L[p[0]][p[3]] - g11 - g22 - g33) - g12 - g23;
+  const PetscReal G[3][3] = {{g11, std::abs(g12), std::abs(g13)}, {std::abs(g12), g22, std::abs(g23)}, {std::abs(g13), std::abs(g23), g33}};
+  PetscReal       w[3], lambda = 0;
+  for (int r = 0; r < 3; ++r) w[r] = G[r][0] + G[r][1] + G[r][2];
+  for (int r = 0; r < 3; ++r) lambda = std::max(lambda, (G[r][0] * w[0] + G[r][1] * w[1] + G[r][2] * w[2]) / w[r]);
+  return std::sqrt(std::min(norm2, lambda)) / M_PI;
 }
 
 // The points of `rule` in the simplex with vertices X: x[q * dim ..].
@@ -145,8 +189,8 @@ static void ComputeCellLoadD(const Space &space, const Problem &problem, const S
   }
   PetscReal dev2 = 0;
   for (PetscInt q = 0; q < orule.Size(); ++q) dev2 += orule.weights[q] * (fo[q] - mean) * (fo[q] - mean);
-  // Poincare on a convex cell: ||w - w_T||_T <= h_T / pi ||grad w||_T.
-  load.oscillation = SimplexDiameter(dim, X) / M_PI * std::sqrt(dev2 * g.volume / sys.Kappa(c));
+  // Poincare: ||w - w_T||_T <= C_T ||grad w||_T (PoincareConstant; not computed where f is constant on T).
+  load.oscillation = dev2 > 0 ? PoincareConstant(dim, X) * std::sqrt(dev2 * g.volume / sys.Kappa(c)) : 0.0;
 }
 static void ComputeCellLoad(const Space &space, const Problem &problem, const System &sys, PetscInt c, const PetscReal *X, const CellGeometry &g, const PetscReal *fx, const PetscReal *x, std::vector<PetscReal> &work, CellLoad &load, bool oscillation, LoadRange *range, std::string &error)
 {

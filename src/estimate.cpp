@@ -28,7 +28,7 @@ bool InParts(const std::vector<PetscInt> &parts, PetscInt part) { return std::fi
 struct FaceOf {
   PetscInt     vert[3];
   CellGeometry g;
-  PetscReal    area, diameter, reach = 0;
+  PetscReal    area, poincare, reach = 0;
   FaceOf(const Space &space, const BoundaryFace &bf)
   {
     PetscInt n = 0;
@@ -37,7 +37,7 @@ struct FaceOf {
     const Space::Coords X = space.X(bf.cell);
     ComputeCellGeometry(space.dim, X, g);
     area     = space.FaceMeasure(bf);
-    diameter = SimplexDiameter(space.dim, X);
+    poincare = PoincareConstant(space.dim, X);
     for (PetscInt k = 0; k <= space.dim; ++k) {
       PetscReal l2 = 0;
       for (PetscInt d = 0; d < space.dim; ++d) l2 += (X[k * space.dim + d] - X[bf.opposite * space.dim + d]) * (X[k * space.dim + d] - X[bf.opposite * space.dim + d]);
@@ -48,10 +48,10 @@ struct FaceOf {
 
 // Adds the Neumann oscillation of each face of Gamma_N to its cell's: for e in H^1 with mean e_T on T,
 // (g - Pi_0 g, e)_F = (g - Pi_0 g, e - e_T)_F and ||e - e_T||_F <= C_F ||grad e||_T with
-//   C_F^2 = |F| h_T / |T| (h_T / pi^2 + 2 l_F / (pi d)),
+//   C_F^2 = |F| C_T / |T| (C_T + 2 l_F / d),
 // from int_F w = |F|/(d|T|) int_T (d w + (x - a_F) . grad w) (a_F the vertex opposite F) with
-// w = (e - e_T)^2, Poincare's ||e - e_T||_T <= h_T/pi ||grad e||_T, and |x - a_F| <= l_F on T, l_F the longest
-// edge at a_F (<= h_T). Pi_0 g is the mean of g (by the oscillation's face rule, assembly.h).
+// w = (e - e_T)^2, Poincare's ||e - e_T||_T <= C_T ||grad e||_T (PoincareConstant, at most h_T / pi), and
+// |x - a_F| <= l_F on T, l_F the longest edge at a_F (<= h_T). Pi_0 g is the mean of g (by the oscillation's face rule, assembly.h).
 void AddNeumannOscillation(const Space &space, const Problem &problem, const System &sys, std::vector<PetscReal> &osc, std::string &error)
 {
   if (!problem.HasNeumann() || problem.g->IsConstant()) return;
@@ -71,7 +71,7 @@ void AddNeumannOscillation(const Space &space, const Problem &problem, const Sys
       mean += rule.weights[q] * values[q];
     }
     for (PetscInt q = 0; q < rule.Size(); ++q) dev2 += rule.weights[q] * (values[q] - mean) * (values[q] - mean);
-    const PetscReal C2 = face.area * face.diameter / face.g.volume * (face.diameter / (M_PI * M_PI) + 2 * face.reach / (M_PI * dim));
+    const PetscReal CP = face.poincare, C2 = face.area * CP / face.g.volume * (CP + 2 * face.reach / dim);
     osc[bf.cell] += std::sqrt(C2 * dev2 * face.area / sys.Kappa(bf.cell));
   }
 }

@@ -22,7 +22,8 @@ PetscErrorCode AssemblyOptionsFromCommandLine(MPI_Comm comm, AssemblyOptions &o)
 // The load of one cell by the assembly's rule (System::cellRule), from one evaluation of f per point:
 // moment[k] = int_T f lambda_k (k = 0..dim), so that int_T f phi_i = sum_k moment[k] phi_i(X_k) for the
 // (affine) basis functions, int_T f = sum_k moment[k] and Pi_0 f = that / |T|; and the oscillation
-// h_T / pi kappa_T^{-1/2} ||f - Pi_0 f||_T (the norm by the same rule), which the estimate needs.
+// C_T kappa_T^{-1/2} ||f - Pi_0 f||_T (the norm by the same rule; C_T = PoincareConstant), which the
+// estimate needs.
 struct CellLoad {
   PetscReal moment[4];
   PetscReal oscillation;
@@ -70,8 +71,10 @@ inline void GetCellLoad(const Space &space, const Problem &problem, const System
   for (PetscInt k = 0; k < n - 1; ++k) load.moment[k] = kept[k];
   load.oscillation = kept[n - 1];
 }
-// Diameter of the simplex with vertices X (its longest edge).
-PetscReal SimplexDiameter(PetscInt dim, const PetscReal *X);
+// A constant C_T of Poincare's inequality ||w - w_T||_T <= C_T ||grad w||_T (w_T the mean of w on T) on the
+// simplex T with vertices X: h_T / pi (Payne-Weinberger, any convex cell), or smaller where T is an affine
+// image of half a square or a sixth of a cube by a map of norm below h_T (see assembly.cpp).
+PetscReal PoincareConstant(PetscInt dim, const PetscReal *X);
 // Element stiffness of cell c (nb x nb, row-major).
 void ElementStiffness(const Space &space, PetscInt c, PetscReal kappa, const CellGeometry &g, PetscReal *Ke);
 

@@ -7,7 +7,7 @@
 //
 // From the variational inequality, for E = |||u - v|||:
 //   E^2 <= (F + osc) E + gamma,  F = ||kappa^{-1/2}(kappa grad v - sigma)||,  gamma = int_{Gamma_C} sigma.n (v - psi),
-// with osc = (sum_T (h_T / pi)^2 / kappa_T ||f - Pi_0 f||_T^2)^{1/2} (Poincare on convex cells) and the
+// with osc = (sum_T C_T^2 / kappa_T ||f - Pi_0 f||_T^2)^{1/2} (C_T Poincare's constant, PoincareConstant) and the
 // same for g on Gamma_N, so E <= (b + sqrt(b^2 + 4 gamma)) / 2 with b = F + osc, and
 //   |||u - u_h||| <= N + E,  N = |||u_h - v|||   (nonconformity; zero for P1).
 // eta is the smallest of this bound and two more from the same inequality (see estimate.cpp, Bound): one
@@ -51,7 +51,7 @@ struct Reconstruction {
   // whether this rank owns the vertex (ImproveCompanion).
   std::vector<PetscReal> companion, lower;
   std::vector<char>      movable, owned;
-  // Per local cell, h_T / pi kappa_T^{-1/2} ||f - Pi_0 f||_T (see CellLoad in assembly.h), from the loads
+  // Per local cell, C_T kappa_T^{-1/2} ||f - Pi_0 f||_T (see CellLoad in assembly.h), from the loads
   // that the flux needed; empty: the estimate gets them itself.
   std::vector<PetscReal> oscillation;
   // P1: per local cell F_T^2 = ||kappa^{-1/2}(kappa grad u_h - sigma)||_T^2, computed with the flux from

@@ -1,0 +1,228 @@
+// Unit tests of PoincareConstant (assembly.h), the constant C_T of ||w - w_T||_T <= C_T ||grad w||_T that
+// the data oscillation of the estimate is weighted with. The bound must hold for every w (else the estimate
+// is no longer guaranteed), so the tests compare it with Rayleigh quotients ||w - w_T||^2 / ||grad w||^2
+// computed independently:
+//  - exact values: half a square and a sixth of a cube (Kuhn's tetrahedron), scaled, turned and with their
+//    vertices in every order, have C_T = (leg) / pi, attained by cos(pi x) + cos(pi y) (+ cos(pi z)) (its
+//    quotient by quadrature equals C_T^2); equilateral cells get Payne-Weinberger's h_T / pi;
+//  - invariants: C_T <= h_T / pi, scaling with the cell, unchanged by rotation and translation;
+//  - the bound on random, flat and stretched cells and on near-Kuhn ones (where it is below h_T / pi):
+//    C_T^2 >= the largest quotient of affine w (the covariance of the cell's points, exactly) and of the
+//    reference eigenfunction carried to the cell by each of its vertex orders (by quadrature).
+#include "signorini/assembly.h"
+#include "signorini/quadrature.h"
+#include "unit_check.h"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+using signorini::PoincareConstant;
+
+namespace {
+
+using Cell = std::vector<double>; // (dim + 1) x dim vertex coordinates
+
+double Diameter(int dim, const Cell &X)
+{
+  double h2 = 0;
+  for (int i = 0; i <= dim; ++i)
+    for (int j = i + 1; j <= dim; ++j) {
+      double l2 = 0;
+      for (int d = 0; d < dim; ++d) l2 += (X[i * dim + d] - X[j * dim + d]) * (X[i * dim + d] - X[j * dim + d]);
+      h2 = std::max(h2, l2);
+    }
+  return std::sqrt(h2);
+}
+
+// The reference simplex K: half the unit square, Kuhn's sixth of the unit cube.
+Cell Reference(int dim)
+{
+  if (dim == 2) return {0, 0, 0, 1, 1, 1};
+  return {0, 0, 0, 0, 0, 1, 0, 1, 1, 1, 1, 1};
+}
+
+// x -> s Q x + t with Q a rotation (about the z axis, then the x axis in 3D).
+Cell Move(int dim, const Cell &X, double s, double a, double b, const double *t)
+{
+  Cell Y(X.size());
+  for (int i = 0; i <= dim; ++i) {
+    double p[3] = {X[i * dim], X[i * dim + 1], dim == 3 ? X[i * dim + 2] : 0};
+    double q[3] = {std::cos(a) * p[0] - std::sin(a) * p[1], std::sin(a) * p[0] + std::cos(a) * p[1], p[2]};
+    if (dim == 3) p[0] = q[0], p[1] = std::cos(b) * q[1] - std::sin(b) * q[2], p[2] = std::sin(b) * q[1] + std::cos(b) * q[2];
+    else p[0] = q[0], p[1] = q[1];
+    for (int d = 0; d < dim; ++d) Y[i * dim + d] = s * p[d] + t[d];
+  }
+  return Y;
+}
+
+Cell Permuted(int dim, const Cell &X, const int *perm)
+{
+  Cell Y(X.size());
+  for (int i = 0; i <= dim; ++i)
+    for (int d = 0; d < dim; ++d) Y[i * dim + d] = X[perm[i] * dim + d];
+  return Y;
+}
+
+// The largest eigenvalue of a symmetric dim x dim matrix (Jacobi rotations until the off-diagonal vanishes).
+double LargestEigenvalue(int dim, double A[3][3])
+{
+  for (int sweep = 0; sweep < 50; ++sweep)
+    for (int p = 0; p < dim; ++p)
+      for (int q = p + 1; q < dim; ++q) {
+        if (std::abs(A[p][q]) < 1e-300) continue;
+        const double theta = 0.5 * std::atan2(2 * A[p][q], A[q][q] - A[p][p]), c = std::cos(theta), s = std::sin(theta);
+        for (int k = 0; k < dim; ++k) {
+          const double akp = A[k][p], akq = A[k][q];
+          A[k][p] = c * akp - s * akq, A[k][q] = s * akp + c * akq;
+        }
+        for (int k = 0; k < dim; ++k) {
+          const double apk = A[p][k], aqk = A[q][k];
+          A[p][k] = c * apk - s * aqk, A[q][k] = s * apk + c * aqk;
+        }
+      }
+  double m = A[0][0];
+  for (int d = 1; d < dim; ++d) m = std::max(m, A[d][d]);
+  return m;
+}
+
+// The largest quotient of affine w = a.x: a^T Cov a / |a|^2 with Cov the covariance of the cell's points,
+// E[x x^T] = (sum_i X_i X_i^T + (sum_i X_i)(sum_i X_i)^T) / ((d+1)(d+2)).
+double AffineQuotient(int dim, const Cell &X)
+{
+  double S[3] = {0, 0, 0}, A[3][3] = {{0}};
+  for (int i = 0; i <= dim; ++i)
+    for (int d = 0; d < dim; ++d) S[d] += X[i * dim + d];
+  for (int d = 0; d < dim; ++d)
+    for (int e = 0; e < dim; ++e) {
+      double m = S[d] * S[e];
+      for (int i = 0; i <= dim; ++i) m += X[i * dim + d] * X[i * dim + e];
+      A[d][e] = m / ((dim + 1) * (dim + 2)) - S[d] * S[e] / ((dim + 1) * (dim + 1));
+    }
+  return LargestEigenvalue(dim, A);
+}
+
+// The quotient of w = phi o F^{-1} on the cell, phi = sum_d cos(pi xhat_d) the eigenfunction of K and F the
+// affine map with F(K's vertex i) = X_i: int_K (phi - mean)^2 / int_K |B^{-T} grad phi|^2 (|det B| cancels).
+double EigenfunctionQuotient(int dim, const Cell &X, const signorini::Quadrature &rule)
+{
+  const Cell K = Reference(dim);
+  // B = M V^{-1}, M and V the edge matrices from vertex 0 (columns); B^{-T} = M^{-T} V^T.
+  double M[3][3] = {{0}}, V[3][3] = {{0}}, Minv[3][3] = {{0}};
+  for (int j = 0; j < dim; ++j)
+    for (int d = 0; d < dim; ++d) M[d][j] = X[(j + 1) * dim + d] - X[d], V[d][j] = K[(j + 1) * dim + d] - K[d];
+  if (dim == 2) {
+    const double det = M[0][0] * M[1][1] - M[0][1] * M[1][0];
+    Minv[0][0] = M[1][1] / det, Minv[0][1] = -M[0][1] / det, Minv[1][0] = -M[1][0] / det, Minv[1][1] = M[0][0] / det;
+  } else {
+    const double det = M[0][0] * (M[1][1] * M[2][2] - M[1][2] * M[2][1]) - M[0][1] * (M[1][0] * M[2][2] - M[1][2] * M[2][0]) + M[0][2] * (M[1][0] * M[2][1] - M[1][1] * M[2][0]);
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) {
+        const int i1 = (j + 1) % 3, i2 = (j + 2) % 3, j1 = (i + 1) % 3, j2 = (i + 2) % 3;
+        Minv[i][j] = (M[i1][j1] * M[i2][j2] - M[i1][j2] * M[i2][j1]) / det;
+      }
+  }
+  double BinvT[3][3] = {{0}}; // (M^{-1})^T V^T
+  for (int i = 0; i < dim; ++i)
+    for (int j = 0; j < dim; ++j)
+      for (int k = 0; k < dim; ++k) BinvT[i][j] += Minv[k][i] * V[j][k];
+  double wsum = 0, mean = 0, m2 = 0, g2 = 0;
+  for (PetscInt q = 0; q < rule.Size(); ++q) {
+    double xh[3] = {0, 0, 0};
+    for (int i = 0; i <= dim; ++i)
+      for (int d = 0; d < dim; ++d) xh[d] += rule.Point(q)[i] * K[i * dim + d];
+    double phi = 0, grad[3], g[3] = {0, 0, 0};
+    for (int d = 0; d < dim; ++d) phi += std::cos(M_PI * xh[d]), grad[d] = -M_PI * std::sin(M_PI * xh[d]);
+    for (int i = 0; i < dim; ++i)
+      for (int j = 0; j < dim; ++j) g[i] += BinvT[i][j] * grad[j];
+    const double w = rule.weights[q];
+    wsum += w, mean += w * phi, m2 += w * phi * phi;
+    for (int d = 0; d < dim; ++d) g2 += w * g[d] * g[d];
+  }
+  mean /= wsum;
+  return (m2 / wsum - mean * mean) / (g2 / wsum);
+}
+
+// Every vertex order of the cell: each carries phi differently, and each quotient must stay below C^2.
+double WorstEigenfunctionQuotient(int dim, const Cell &X, const signorini::Quadrature &rule)
+{
+  int    perm[4] = {0, 1, 2, 3};
+  double worst   = 0;
+  do worst = std::max(worst, EigenfunctionQuotient(dim, Permuted(dim, X, perm), rule));
+  while (std::next_permutation(perm, perm + dim + 1));
+  return worst;
+}
+
+void TestExact(unit::Checker &ck, int dim, const signorini::Quadrature &rule)
+{
+  const std::string tag = std::to_string(dim) + "D";
+  const double      t[3] = {0.3, -1.2, 2.5}, leg = 0.37;
+  const Cell        K = Move(dim, Reference(dim), leg, 0.7, 1.1, t);
+  int               perm[4] = {0, 1, 2, 3};
+  double            worst = 0;
+  do worst = std::max(worst, std::abs(PoincareConstant(dim, Permuted(dim, K, perm).data()) * M_PI / leg - 1));
+  while (std::next_permutation(perm, perm + dim + 1));
+  ck.Check(worst < 1e-13, tag + " reference cell (leg 0.37, turned, every vertex order): C = leg / pi", "largest relative deviation %.3g", worst);
+  // The bound is attained: the eigenfunction's quotient is C^2 (to the quadrature's error).
+  const double C = PoincareConstant(dim, K.data());
+  ck.Close(EigenfunctionQuotient(dim, K, rule), C * C, 1e-9, tag + " reference cell: cos(pi x) + ... attains C^2 (sharp)", 0.0);
+  // Equilateral cells: Payne-Weinberger's h_T / pi is the smaller.
+  const Cell E = dim == 2 ? Cell{0, 0, 1, 0, 0.5, std::sqrt(3.0) / 2} : Cell{1, 1, 1, 1, -1, -1, -1, 1, -1, -1, -1, 1};
+  ck.Close(PoincareConstant(dim, E.data()), Diameter(dim, E) / M_PI, 1e-14, tag + " equilateral cell: C = h / pi", 0.0);
+}
+
+void TestRandom(unit::Checker &ck, int dim, const signorini::Quadrature &rule)
+{
+  const std::string                      tag = std::to_string(dim) + "D";
+  std::mt19937                           gen(17 + dim);
+  std::uniform_real_distribution<double> u(0, 1), angle(0, 2 * M_PI);
+  int    above = 0, notInvariant = 0, belowAffine = 0, belowEigen = 0, gained = 0, n = 0;
+  double worstAffine = 0, worstEigen = 0;
+  const Cell K = Reference(dim);
+  for (int kind = 0; kind < 4; ++kind)
+    for (int trial = 0; trial < 60; ++trial, ++n) {
+      Cell X(K.size());
+      for (int i = 0; i < (int)X.size(); ++i) {
+        if (kind == 0) X[i] = u(gen);                            // any cell
+        if (kind == 1) X[i] = K[i] + 0.15 * (u(gen) - 0.5);      // near the reference: C below h / pi
+        if (kind == 2) X[i] = K[i] * (i % dim == 0 ? 30.0 : 1.0); // stretched along x
+        if (kind == 3) X[i] = (i % dim == dim - 1 ? 0.01 : 1.0) * u(gen); // flat
+        if (kind == 2) X[i] += 0.05 * (u(gen) - 0.5);
+      }
+      const double C = PoincareConstant(dim, X.data()), h = Diameter(dim, X);
+      if (!(C <= h / M_PI * (1 + 1e-14))) ++above;
+      const double t[3] = {u(gen), u(gen), u(gen)}, s = 0.5 + u(gen);
+      const Cell   Y    = Move(dim, X, s, angle(gen), angle(gen), t);
+      if (std::abs(PoincareConstant(dim, Y.data()) / (s * C) - 1) > 1e-10) ++notInvariant;
+      const double qa = AffineQuotient(dim, X), qe = WorstEigenfunctionQuotient(dim, X, rule);
+      worstAffine = std::max(worstAffine, qa / (C * C)), worstEigen = std::max(worstEigen, qe / (C * C));
+      belowAffine += !(qa <= C * C * (1 + 1e-12));
+      belowEigen += !(qe <= C * C * (1 + 1e-9));
+      gained += C < 0.99 * h / M_PI;
+    }
+  ck.Check(above == 0, tag + " C <= h / pi on " + std::to_string(n) + " random, near-reference, stretched and flat cells", "%d above", above);
+  ck.Check(notInvariant == 0, tag + " C scales with the cell and ignores rotation and translation", "%d cells changed", notInvariant);
+  ck.Check(belowAffine == 0, tag + " C^2 >= the largest quotient of affine functions (covariance)", "%d cells below; largest quotient / C^2 %.6f", belowAffine, worstAffine);
+  ck.Check(belowEigen == 0, tag + " C^2 >= the quotient of the reference eigenfunction in every vertex order", "%d cells below; largest quotient / C^2 %.6f", belowEigen, worstEigen);
+  ck.Check(gained >= 40, tag + " C below h / pi on the near-reference cells", "%d of %d cells", gained, n);
+  std::printf("  %s: largest quotient / C^2: affine %.4f, eigenfunction %.4f; C < 0.99 h / pi on %d of %d cells\n", tag.c_str(), worstAffine, worstEigen, gained, n);
+}
+
+} // namespace
+
+int main(int argc, char **argv)
+{
+  PetscErrorCode ierr = PetscInitialize(&argc, &argv, NULL, NULL);
+  if (ierr) return ierr;
+  unit::Checker ck;
+  for (int dim = 2; dim <= 3; ++dim) {
+    const signorini::Quadrature rule = signorini::SimplexQuadrature(dim, 20);
+    TestExact(ck, dim, rule);
+    TestRandom(ck, dim, rule);
+  }
+  const int rc = ck.Finish();
+  ierr         = PetscFinalize();
+  return rc ? rc : (int)ierr;
+}
