@@ -96,19 +96,15 @@ static PetscErrorCode CellCoefficients(const Space &space, const Problem &proble
 // equilateral cells Payne-Weinberger's h_T is smaller and taken.
 PetscReal PoincareConstant(PetscInt dim, const PetscReal *X)
 {
-  PetscReal L[4][4] = {{0}}, h2 = 0; // squared edge lengths, the diameter's square
-  for (PetscInt i = 0; i <= dim; ++i)
-    for (PetscInt j = i + 1; j <= dim; ++j) {
-      PetscReal l2 = 0;
-      for (PetscInt d = 0; d < dim; ++d) l2 += (X[i * dim + d] - X[j * dim + d]) * (X[i * dim + d] - X[j * dim + d]);
-      L[i][j] = L[j][i] = l2;
-      h2                = std::max(h2, l2);
-    }
-  PetscReal norm2 = h2;
   if (dim == 2) { // the three paths (by their middle vertex m): a 2 x 2 Gram matrix, its eigenvalue exactly
+    PetscReal L[3], norm2 = 0; // L[k]: the squared length of the edge opposite vertex k
+    for (PetscInt k = 0; k < 3; ++k) {
+      const PetscReal *a = &X[((k + 1) % 3) * 2], *b = &X[((k + 2) % 3) * 2];
+      L[k] = (a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]);
+      norm2 = std::max(norm2, L[k]);
+    }
     for (PetscInt m = 0; m < 3; ++m) {
-      const PetscInt  i = (m + 1) % 3, j = (m + 2) % 3;
-      const PetscReal p = L[m][i], q = L[m][j], r = 0.5 * (p + q - L[i][j]);
+      const PetscReal p = L[(m + 1) % 3], q = L[(m + 2) % 3], r = 0.5 * (p + q - L[m]);
       norm2 = std::min(norm2, 0.5 * (p + q) + std::sqrt(0.25 * (p - q) * (p - q) + r * r));
     }
     return std::sqrt(norm2) / M_PI;
@@ -117,25 +113,30 @@ PetscReal PoincareConstant(PetscInt dim, const PetscReal *X)
   // bound; for Kuhn's tetrahedra this is the one of three orthogonal edges, and choosing it costs a few
   // additions where bounding all twelve cost five times the diameter). Its Gram matrix's largest eigenvalue
   // is bounded above by Collatz-Wielandt's max_i (|G| w)_i / w_i with w = |G| (1, 1, 1) (exact where G is
-  // diagonal).
-  static constexpr int kPath[12][4] = {{0, 1, 2, 3}, {0, 1, 3, 2}, {0, 2, 1, 3}, {0, 2, 3, 1}, {0, 3, 1, 2}, {0, 3, 2, 1}, {1, 0, 2, 3}, {1, 0, 3, 2}, {1, 2, 0, 3}, {1, 3, 0, 2}, {2, 0, 1, 3}, {2, 1, 0, 3}};
-  PetscInt  k     = 0;
+  // diagonal). Edges by vertex pair: 01 02 03 12 13 23; a path a-b-c-d as its edges ab, bc, cd, then ac, bd, ad.
+  static constexpr int kPath[12][6] = {{0, 3, 5, 1, 4, 2}, {0, 4, 5, 2, 3, 1}, {1, 3, 4, 0, 5, 2}, {1, 5, 4, 2, 3, 0}, {2, 4, 3, 0, 5, 1}, {2, 5, 3, 1, 4, 0},
+                                       {0, 1, 5, 3, 2, 4}, {0, 2, 5, 4, 1, 3}, {3, 1, 2, 0, 5, 4}, {4, 2, 1, 0, 5, 3}, {1, 0, 4, 3, 2, 5}, {3, 0, 2, 1, 4, 5}};
+  static constexpr int kPair[6][2]   = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+  PetscReal            L[6], h2 = 0;
+  for (int e = 0; e < 6; ++e) {
+    const PetscReal *a = &X[kPair[e][0] * 3], *b = &X[kPair[e][1] * 3];
+    L[e] = (a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]);
+    h2   = std::max(h2, L[e]);
+  }
+  int       k     = 0;
   PetscReal trace = PETSC_MAX_REAL;
-  for (PetscInt i = 0; i < 12; ++i) {
-    const int      *p = kPath[i];
-    const PetscReal t = L[p[0]][p[1]] + L[p[1]][p[2]] + L[p[2]][p[3]];
+  for (int i = 0; i < 12; ++i) {
+    const PetscReal t = L[kPath[i][0]] + L[kPath[i][1]] + L[kPath[i][2]];
     k                 = t < trace ? i : k;
     trace             = std::min(trace, t);
   }
   const int      *p   = kPath[k];
-  const PetscReal g11 = L[p[0]][p[1]], g22 = L[p[1]][p[2]], g33 = L[p[2]][p[3]];
-  const PetscReal g12 = 0.5 * (L[p[0]][p[2]] - g11 - g22), g23 = 0.5 * (L[p[1]][p[3]] - g22 - g33);
-  const PetscReal g13 = 0.5 * (L[p[0]][p[3]] - g11 - g22 - g33) - g12 - g23;
-  const PetscReal G[3][3] = {{g11, std::abs(g12), std::abs(g13)}, {std::abs(g12), g22, std::abs(g23)}, {std::abs(g13), std::abs(g23), g33}};
-  PetscReal       w[3], lambda = 0;
-  for (int r = 0; r < 3; ++r) w[r] = G[r][0] + G[r][1] + G[r][2];
-  for (int r = 0; r < 3; ++r) lambda = std::max(lambda, (G[r][0] * w[0] + G[r][1] * w[1] + G[r][2] * w[2]) / w[r]);
-  return std::sqrt(std::min(norm2, lambda)) / M_PI;
+  const PetscReal g11 = L[p[0]], g22 = L[p[1]], g33 = L[p[2]];
+  const PetscReal g12 = 0.5 * (L[p[3]] - g11 - g22), g23 = 0.5 * (L[p[4]] - g22 - g33), g13 = 0.5 * (L[p[5]] - g11 - g22 - g33) - g12 - g23;
+  const PetscReal a12 = std::abs(g12), a13 = std::abs(g13), a23 = std::abs(g23);
+  const PetscReal w1 = g11 + a12 + a13, w2 = a12 + g22 + a23, w3 = a13 + a23 + g33;
+  const PetscReal lambda = std::max(std::max((g11 * w1 + a12 * w2 + a13 * w3) / w1, (a12 * w1 + g22 * w2 + a23 * w3) / w2), (a13 * w1 + a23 * w2 + g33 * w3) / w3);
+  return std::sqrt(std::min(h2, lambda)) / M_PI;
 }
 
 // The points of `rule` in the simplex with vertices X: x[q * dim ..].
