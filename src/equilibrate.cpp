@@ -920,8 +920,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   // the order of the patches below: the cells of consecutive patches then lie close in memory, where the
   // vertex order may scatter them (a mesh refined in levels numbers cells and vertices by different
   // rules), which made the patches' reads of the cell data and writes of the fluxes wait for memory. The
-  // local cells of each vertex (CSR, by that order: the patches read it front to back), and which vertices
-  // have cells on other ranks too (their count summed over ranks is larger).
+  // local cells of each vertex (CSR, by that order: the patches read it front to back).
   std::vector<PetscInt> order, pos(nv, -1), start(nv + 1, 0), list(nc * nb);
   order.reserve(nv);
   for (PetscInt i = 0; i < nc * nb; ++i)
@@ -934,24 +933,29 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
     std::vector<PetscInt> next(start.begin(), start.end() - 1);
     for (PetscInt i = 0; i < nc * nb; ++i) list[next[pos[space.cellVert[i]]]++] = i; // i = c * nb + corner
   }
-  Vec          total;
-  PetscScalar *la;
-  PetscCall(DMGetGlobalVector(space.dm, &total));
-  Vec                count;
-  const PetscScalar *ca;
-  PetscCall(DMGetLocalVector(space.dm, &count));
-  PetscCall(VecGetArray(count, &la));
-  for (PetscInt v = 0; v < nv; ++v) la[v] = start[pos[v] + 1] - start[pos[v]];
-  PetscCall(VecRestoreArray(count, &la));
-  PetscCall(VecSet(total, 0));
-  PetscCall(DMLocalToGlobal(space.dm, count, ADD_VALUES, total));
-  PetscCall(DMGlobalToLocal(space.dm, total, INSERT_VALUES, count));
-  PetscCall(DMRestoreGlobalVector(space.dm, &total));
-  std::vector<char> shared(nv);
-  PetscCall(VecGetArrayRead(count, &ca));
-  for (PetscInt v = 0; v < nv; ++v) shared[v] = PetscRealPart(ca[v]) > start[pos[v] + 1] - start[pos[v]] + 0.5;
-  PetscCall(VecRestoreArrayRead(count, &ca));
-  PetscCall(DMRestoreLocalVector(space.dm, &count));
+  // Which vertices have cells on other ranks too (their count summed over ranks is larger): none on one rank.
+  std::vector<char> shared(nv, 0);
+  bool              anyShared = false; // on this rank: else it has no corners to send
+  PetscMPIInt       size;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  if (size > 1) {
+    Vec                total, count;
+    PetscScalar       *la;
+    const PetscScalar *ca;
+    PetscCall(DMGetGlobalVector(space.dm, &total));
+    PetscCall(DMGetLocalVector(space.dm, &count));
+    PetscCall(VecGetArray(count, &la));
+    for (PetscInt v = 0; v < nv; ++v) la[v] = start[pos[v] + 1] - start[pos[v]];
+    PetscCall(VecRestoreArray(count, &la));
+    PetscCall(VecSet(total, 0));
+    PetscCall(DMLocalToGlobal(space.dm, count, ADD_VALUES, total));
+    PetscCall(DMGlobalToLocal(space.dm, total, INSERT_VALUES, count));
+    PetscCall(DMRestoreGlobalVector(space.dm, &total));
+    PetscCall(VecGetArrayRead(count, &ca));
+    for (PetscInt v = 0; v < nv; ++v) shared[v] = PetscRealPart(ca[v]) > start[pos[v] + 1] - start[pos[v]] + 0.5, anyShared = anyShared || shared[v];
+    PetscCall(VecRestoreArrayRead(count, &ca));
+    PetscCall(DMRestoreLocalVector(space.dm, &count));
+  }
 
   std::vector<PetscInt> ranges;
   PetscMPIInt           rank;
@@ -1000,16 +1004,13 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   // Patches across ranks: gather their corners on the vertex's owner, solve there, scatter back.
   std::vector<PetscInt>    leafAt;
   std::vector<PetscSFNode> remote;
-  for (PetscInt i = 0; i < nc * nb; ++i) {
+  for (PetscInt i = 0; i < nc * nb && anyShared; ++i) {
     const PetscInt v = space.cellVert[i];
     if (!shared[v]) continue;
     const PetscMPIInt owner = OwnerOf(ranges, gidx[v]);
     leafAt.push_back(i);
     remote.push_back({owner, gidx[v] - ranges[owner]});
   }
-  std::vector<char> rootKind(space.numOwned, kFree);
-  for (PetscInt v = 0; v < nv; ++v)
-    if (owned(v)) rootKind[gidx[v] - ranges[rank]] = space.kindLocal[v];
   PetscSF sf;
   PetscCall(PetscSFCreate(comm, &sf));
   PetscCall(PetscSFSetGraph(sf, space.numOwned, (PetscInt)leafAt.size(), NULL, PETSC_COPY_VALUES, remote.data(), PETSC_COPY_VALUES));
@@ -1018,6 +1019,9 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscCall(PetscSFComputeDegreeEnd(sf, &degree));
   PetscInt nmulti = 0;
   for (PetscInt i = 0; i < space.numOwned; ++i) nmulti += degree[i];
+  std::vector<char> rootKind(nmulti > 0 ? space.numOwned : 0, kFree); // of the roots that get corners
+  for (PetscInt v = 0; v < nv && nmulti > 0; ++v)
+    if (owned(v)) rootKind[gidx[v] - ranges[rank]] = space.kindLocal[v];
   std::vector<Corner> leafCorners(leafAt.size()), rootCorners(nmulti);
   for (size_t l = 0; l < leafAt.size(); ++l) FillCorner(cd, space, gidx, leafAt[l] / nb, leafAt[l] % nb, leafCorners[l]);
   PetscCall(ISLocalToGlobalMappingRestoreIndices(space.ltog, &gidx));
