@@ -93,8 +93,9 @@ for name, el in [(n, el) for n in ["stiff-stretched-2d", "stiff-stretched-3d"] f
 
 # 2c. Neumann data varying along the long sides of stretched cells: a strip [0, 1] x [0, t] (32 x 32 cells of
 # aspect ratio 1/t) with u = e^x (1 + y) and g = -e^x on its long bottom side. The bound is guaranteed there
-# too, but not efficient: the oscillation of g is bounded through a trace inequality whose constant grows
-# like the square root of the aspect ratio, and P1's patch fluxes grow with it (indices in docs/estimate.md).
+# too, but for P1 not efficient: the oscillation of g (its affine part lifted into the cell, the rest through
+# a trace inequality) grows like the square root of the aspect ratio, and P1's patch fluxes grow with it
+# (indices in docs/estimate.md).
 # Checked: eta >= the energy error at every aspect ratio.
 strip = ["-dim", "2", "-box_faces", "32,32", "-bc_dirichlet", "2,3,4", "-bc_neumann", "1", "-f", "0-exp(x)*(1+y)",
          "-g", "0-exp(x)", "-u_D", "exp(x)*(1+y)", "-exact_u", "exp(x)*(1+y)", "-exact_grad", "exp(x)*(1+y), exp(x)"]

@@ -1,7 +1,8 @@
-// Unit tests of PoincareConstant (assembly.h), the constant C_T of ||w - w_T||_T <= C_T ||grad w||_T that
-// the data oscillation of the estimate is weighted with. The bound must hold for every w (else the estimate
-// is no longer guaranteed), so the tests compare it with Rayleigh quotients ||w - w_T||^2 / ||grad w||^2
-// computed independently:
+// Unit tests of the constants the data oscillation of the estimate is weighted with; each must bound for
+// every function (else the estimate is no longer guaranteed), so the tests compare with quantities computed
+// independently.
+// 1. PoincareConstant (assembly.h), C_T of ||w - w_T||_T <= C_T ||grad w||_T, against Rayleigh quotients
+// ||w - w_T||^2 / ||grad w||^2:
 //  - exact values: half a square and a sixth of a cube (Kuhn's tetrahedron), scaled, turned and with their
 //    vertices in every order, have C_T = (leg) / pi, attained by cos(pi x) + cos(pi y) (+ cos(pi z)) (its
 //    quotient by quadrature equals C_T^2); equilateral cells get Payne-Weinberger's h_T / pi;
@@ -9,7 +10,12 @@
 //  - the bound on random, flat and stretched cells and on near-Kuhn ones (where it is below h_T / pi):
 //    C_T^2 >= the largest quotient of affine w (the covariance of the cell's points, exactly) and of the
 //    reference eigenfunction carried to the cell by each of its vertex orders (by quadrature).
+// 2. NeumannLiftNorm (estimate.h), ||tau||_T of the affine divergence-free lifting of an affine l of mean zero
+// on a face: Green's identity int_F l e = int_T tau . grad e for random quadratic e (which holds for every e
+// only if tau's normal trace is l on F and 0 on the other faces and div tau = 0), and the norm against
+// the quadrature of |tau|^2, on random and flat triangles and tetrahedra, every face.
 #include "signorini/assembly.h"
+#include "signorini/estimate.h"
 #include "signorini/quadrature.h"
 #include "unit_check.h"
 
@@ -210,6 +216,95 @@ void TestRandom(unit::Checker &ck, int dim, const signorini::Quadrature &rule)
   std::printf("  %s: largest quotient / C^2: affine %.4f, eigenfunction %.4f; C < 0.99 h / pi on %d of %d cells\n", tag.c_str(), worstAffine, worstEigen, gained, n);
 }
 
+double Volume(int dim, const Cell &X)
+{
+  double e[3][3];
+  for (int k = 0; k < dim; ++k)
+    for (int d = 0; d < dim; ++d) e[k][d] = X[(k + 1) * dim + d] - X[d];
+  if (dim == 2) return std::abs(e[0][0] * e[1][1] - e[0][1] * e[1][0]) / 2;
+  return std::abs(e[0][0] * (e[1][1] * e[2][2] - e[1][2] * e[2][1]) - e[0][1] * (e[1][0] * e[2][2] - e[1][2] * e[2][0]) + e[0][2] * (e[1][0] * e[2][1] - e[1][1] * e[2][0])) / 6;
+}
+
+// The measure of the face opposite vertex o.
+double FaceArea(int dim, const Cell &X, int o)
+{
+  int v[3], n = 0;
+  for (int k = 0; k <= dim; ++k)
+    if (k != o) v[n++] = k;
+  double a[3] = {0, 0, 0}, b[3] = {0, 0, 0};
+  for (int d = 0; d < dim; ++d) a[d] = X[v[1] * dim + d] - X[v[0] * dim + d];
+  if (dim == 2) return std::sqrt(a[0] * a[0] + a[1] * a[1]);
+  for (int d = 0; d < dim; ++d) b[d] = X[v[2] * dim + d] - X[v[0] * dim + d];
+  const double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+  return std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]) / 2;
+}
+
+void TestLift(unit::Checker &ck, int dim)
+{
+  const std::string                      tag = std::to_string(dim) + "D";
+  const signorini::Quadrature            cellRule = signorini::SimplexQuadrature(dim, 4), faceRule = signorini::SimplexQuadrature(dim - 1, 4);
+  std::mt19937                           gen(29 + dim);
+  std::uniform_real_distribution<double> u(-1, 1);
+  double                                 worstGreen = 0, worstNorm = 0;
+  int                                    n = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    Cell X((dim + 1) * dim);
+    for (int i = 0; i < (int)X.size(); ++i) X[i] = u(gen) * (trial % 4 == 3 && i % dim == dim - 1 ? 0.02 : 1.0); // every fourth flat
+    const double vol = Volume(dim, X);
+    for (int o = 0; o <= dim; ++o, ++n) {
+      double l[4] = {0, 0, 0, 0}, sum = 0, e0 = u(gen), beta[3] = {u(gen), u(gen), u(gen)}, G[3][3];
+      for (int j = 0; j <= dim; ++j)
+        if (j != o) l[j] = u(gen), sum += l[j];
+      for (int j = 0; j <= dim; ++j)
+        if (j != o) l[j] -= sum / dim; // mean zero on the face
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b <= a; ++b) G[a][b] = G[b][a] = u(gen);
+      const auto e = [&](const double *x) {
+        double v = e0;
+        for (int a = 0; a < dim; ++a) {
+          v += beta[a] * x[a];
+          for (int b = 0; b < dim; ++b) v += x[a] * G[a][b] * x[b];
+        }
+        return v;
+      };
+      const double area = FaceArea(dim, X, o), h = dim * vol / area;
+      // int_F l e by the face rule, l = sum_j l_j lambda_j
+      double lhs = 0;
+      for (PetscInt q = 0; q < faceRule.Size(); ++q) {
+        double lambda[4] = {0, 0, 0, 0}, x[3] = {0, 0, 0}, lq = 0;
+        for (int j = 0, m = 0; j <= dim; ++j)
+          if (j != o) lambda[j] = faceRule.Point(q)[m++];
+        for (int j = 0; j <= dim; ++j) {
+          lq += l[j] * lambda[j];
+          for (int d = 0; d < dim; ++d) x[d] += lambda[j] * X[j * dim + d];
+        }
+        lhs += faceRule.weights[q] * area * lq * e(x);
+      }
+      // int_T tau . grad e and int_T |tau|^2 by the cell rule
+      double rhs = 0, tau2 = 0;
+      for (PetscInt q = 0; q < cellRule.Size(); ++q) {
+        const double *lambda = cellRule.Point(q);
+        double        x[3] = {0, 0, 0}, tau[3] = {0, 0, 0}, grad[3] = {0, 0, 0};
+        for (int j = 0; j <= dim; ++j)
+          for (int d = 0; d < dim; ++d) {
+            x[d] += lambda[j] * X[j * dim + d];
+            if (j != o) tau[d] += l[j] * lambda[j] * (X[j * dim + d] - X[o * dim + d]) / h;
+          }
+        for (int a = 0; a < dim; ++a) {
+          grad[a] = beta[a];
+          for (int b = 0; b < dim; ++b) grad[a] += 2 * G[a][b] * x[b];
+        }
+        for (int d = 0; d < dim; ++d) rhs += cellRule.weights[q] * vol * tau[d] * grad[d], tau2 += cellRule.weights[q] * vol * tau[d] * tau[d];
+      }
+      const double norm = signorini::NeumannLiftNorm(dim, X.data(), o, l);
+      worstGreen = std::max(worstGreen, std::abs(lhs - rhs) / std::max(std::abs(lhs), 1e-3 * area));
+      worstNorm  = std::max(worstNorm, std::abs(norm * norm - tau2) / tau2);
+    }
+  }
+  ck.Check(worstGreen < 1e-12, tag + " lifting: int_F l e = int_T tau . grad e (" + std::to_string(n) + " faces, random quadratic e)", "largest relative difference %.3g", worstGreen);
+  ck.Check(worstNorm < 1e-12, tag + " lifting: NeumannLiftNorm^2 = the quadrature of |tau|^2", "largest relative difference %.3g", worstNorm);
+}
+
 } // namespace
 
 int main(int argc, char **argv)
@@ -221,6 +316,7 @@ int main(int argc, char **argv)
     const signorini::Quadrature rule = signorini::SimplexQuadrature(dim, 20);
     TestExact(ck, dim, rule);
     TestRandom(ck, dim, rule);
+    TestLift(ck, dim);
   }
   const int rc = ck.Finish();
   ierr         = PetscFinalize();
