@@ -177,7 +177,7 @@ PetscErrorCode AdaptiveRefinement::Refine()
     if (dist) {
       PetscCall(MigrateCellValues(mesh_, migration, dist, carried_));
       if (multigrid_) { // the cells leave their parents' ranks: the transfer is recorded on them and travels along
-        PetscCall(TimeIn(Stage::Solve, multigridSeconds_, [&]() -> PetscErrorCode {
+        PetscCall(StageTimed(PetscObjectComm((PetscObject)mesh_), Stage::Solve, multigridSeconds_, [&]() -> PetscErrorCode {
           PetscCall(RecordP1Transfer(*coarseP1_, mesh_, mgParent_, record_));
           mgParent_.clear();
           coarseP1_ = nullptr;
@@ -210,10 +210,10 @@ PetscErrorCode AdaptiveRefinement::Carry(MeshSolution &cur, bool &carried)
     PetscCall(nested_->Carry(cur, carried));
     PetscFunctionReturn(0);
   }
-  if (multigrid_) PetscCall(TimeIn(Stage::Solve, multigridSeconds_, [&] { return MultigridCarry(cur.space); }));
+  if (multigrid_) PetscCall(StageTimed(PetscObjectComm((PetscObject)mesh_), Stage::Solve, multigridSeconds_, [&] { return MultigridCarry(cur.space); }));
   carried = step_ > 0;
   if (!carried) PetscFunctionReturn(0);
-  PetscCall(TimeIn(Stage::Adapt, rows.back().transferSeconds, [&]() -> PetscErrorCode {
+  PetscCall(StageTimed(PetscObjectComm((PetscObject)mesh_), Stage::Adapt, rows.back().transferSeconds, [&]() -> PetscErrorCode {
     Vec lowerh = nullptr;
     if (problem_.HasContact()) {
       PetscCall(VecDuplicate(cur.u, &lowerh));
@@ -275,7 +275,7 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
   row.reference = adaptEnd_ >= 0 && step_ > adaptEnd_;
   stop_         = adaptEnd_ >= 0 && step_ >= adaptEnd_ + adapt_.referenceSteps;
   if (!stop_) {
-    PetscCall(TimeIn(Stage::Adapt, row.markSeconds, [&] { return MarkDoerfler(comm, eta2, adapt_.theta, marked_, &row.marked); }));
+    PetscCall(StageTimed(PetscObjectComm((PetscObject)mesh_), Stage::Adapt, row.markSeconds, [&] { return MarkDoerfler(comm, eta2, adapt_.theta, marked_, &row.marked); }));
     stop_ = row.marked == 0; // a zero estimate: nothing to refine
   }
   rows.push_back(row);
@@ -350,21 +350,6 @@ PetscErrorCode AdaptiveRefinement::MultigridCarry(const Space &space)
     PetscCall(P1ToCRMatrix(p1_, space, &P));
     hierarchy_.P.push_back(P);
   }
-  PetscFunctionReturn(0);
-}
-
-// Runs f in stage s and adds its wall time (max over ranks) to seconds.
-PetscErrorCode AdaptiveRefinement::TimeIn(Stage s, double &seconds, const std::function<PetscErrorCode()> &f)
-{
-  PetscLogDouble t0;
-  double         dt;
-  PetscFunctionBeginUser;
-  PetscCall(PetscTime(&t0));
-  PetscCall(StagePush(s));
-  PetscCall(f());
-  PetscCall(StagePop(s));
-  PetscCall(SecondsSince(PetscObjectComm((PetscObject)mesh_), t0, &dt));
-  seconds += dt;
   PetscFunctionReturn(0);
 }
 

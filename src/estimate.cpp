@@ -26,15 +26,16 @@ bool InParts(const std::vector<PetscInt> &parts, PetscInt part) { return std::fi
 // The face of bf as dim vertex indices (v - vStart), the cell's geometry, and the reach of the cell from
 // the vertex opposite the face (its longest edge there: no point of the cell is farther from that vertex).
 struct FaceOf {
-  PetscInt     vert[3];
-  CellGeometry g;
+  PetscInt      vert[3];
+  Space::Coords X;
+  CellGeometry  g;
   PetscReal    area, poincare, reach = 0;
   FaceOf(const Space &space, const BoundaryFace &bf)
   {
     PetscInt n = 0;
     for (PetscInt k = 0; k <= space.dim; ++k)
       if (k != bf.opposite) vert[n++] = space.cellVert[bf.cell * space.Nb() + k];
-    const Space::Coords X = space.X(bf.cell);
+    X = space.X(bf.cell);
     ComputeCellGeometry(space.dim, X, g);
     area     = space.FaceMeasure(bf);
     poincare = PoincareConstant(space.dim, X);
@@ -79,22 +80,20 @@ void AddNeumannOscillation(const Space &space, const Problem &problem, const Sys
       mean += rule.weights[q] * values[q];
       for (PetscInt k = 0; k < nb; ++k) mu[k] += rule.weights[q] * values[q] * lambda[k];
     }
-    // Pi_1 g = sum_k c_k lambda_k on F: the face's mass matrix |F| (1 + delta_jk) / (d (d + 1)) inverted.
-    PetscReal c[4] = {0, 0, 0, 0}, rest2 = 0;
+    // l = Pi_1 g - Pi_0 g = sum_k l_k lambda_k on F: the face's mass matrix |F| (1 + delta_jk) / (d (d + 1))
+    // inverted, less the mean.
+    PetscReal l[4] = {0, 0, 0, 0}, rest2 = 0;
     for (PetscInt k = 0; k < nb; ++k)
-      if (k != bf.opposite) c[k] = dim * (dim + 1) * mu[k] - dim * mean;
+      if (k != bf.opposite) l[k] = dim * (dim + 1) * mu[k] - (dim + 1) * mean;
     for (PetscInt q = 0; q < rule.Size(); ++q) {
-      PetscReal p1 = 0;
-      for (PetscInt k = 0; k < nb; ++k) p1 += c[k] * lambdas[q * nb + k];
+      PetscReal p1 = mean;
+      for (PetscInt k = 0; k < nb; ++k) p1 += l[k] * lambdas[q * nb + k];
       dev2 += rule.weights[q] * (values[q] - mean) * (values[q] - mean);
       rest2 += rule.weights[q] * (values[q] - p1) * (values[q] - p1);
     }
     const PetscReal CP = face.poincare, C2 = face.area * CP / face.g.volume * (CP + 2 * face.reach / dim), kappa = sys.Kappa(bf.cell);
-    const PetscReal trace = std::sqrt(C2 * dev2 * face.area / kappa);
-    PetscReal l[4] = {0, 0, 0, 0};
-    for (PetscInt k = 0; k < nb; ++k) l[k] = k == bf.opposite ? 0.0 : c[k] - mean;
-    const PetscReal tau2 = std::pow(NeumannLiftNorm(dim, space.X(bf.cell), bf.opposite, l), 2) / kappa;
-    const PetscReal lifted = std::sqrt(tau2) + std::sqrt(C2 * rest2 * face.area / kappa);
+    const PetscReal trace  = std::sqrt(C2 * dev2 * face.area / kappa);
+    const PetscReal lifted = (NeumannLiftNorm(dim, face.X, face.g, bf.opposite, l) + std::sqrt(C2 * rest2 * face.area)) / std::sqrt(kappa);
     osc[bf.cell] += std::min(trace, lifted);
   }
 }
@@ -305,14 +304,12 @@ PetscErrorCode EstimateFromReconstruction(const Space &space, const Problem &pro
 }
 } // namespace
 
-PetscReal NeumannLiftNorm(PetscInt dim, const PetscReal *X, PetscInt opposite, const PetscReal *l)
+PetscReal NeumannLiftNorm(PetscInt dim, const PetscReal *X, const CellGeometry &g, PetscInt opposite, const PetscReal *l)
 {
   // ||tau||^2 = sum_jk l_j l_k (X_j - X_o) . (X_k - X_o) int_T lambda_j lambda_k / h^2, with
   // int_T lambda_j lambda_k = |T| (1 + delta_jk) / ((d + 1)(d + 2)) and h = d |T| / |F|.
-  const PetscReal *a = &X[opposite * dim];
-  CellGeometry     g;
-  ComputeCellGeometry(dim, X, g);
-  PetscReal gl2 = 0; // |grad lambda_o|^2 = 1 / h^2
+  const PetscReal *a   = &X[opposite * dim];
+  PetscReal        gl2 = 0; // |grad lambda_o|^2 = 1 / h^2
   for (PetscInt d = 0; d < dim; ++d) gl2 += g.gradLambda[opposite][d] * g.gradLambda[opposite][d];
   PetscReal sum = 0;
   for (PetscInt j = 0; j <= dim; ++j)

@@ -28,21 +28,19 @@ const char *SolveToName(PetscInt solveTo)
 
 PetscErrorCode ProlongateLevel(const MeshSolution &coarse, const Space &fine, const std::vector<PetscInt> &parent, const Problem &problem, Vec uh, double &seconds)
 {
-  Vec            lowerH, lowerh;
-  PetscLogDouble t0;
   PetscFunctionBeginUser;
-  PetscCall(PetscTime(&t0));
-  PetscCall(StagePush(Stage::Solve));
-  PetscCall(Prolongate(coarse.space, coarse.u, fine, parent, uh));
-  PetscCall(VecDuplicate(coarse.u, &lowerH));
-  PetscCall(ContactLowerBound(coarse.space, problem, lowerH));
-  PetscCall(VecDuplicate(uh, &lowerh));
-  PetscCall(ContactLowerBound(fine, problem, lowerh));
-  PetscCall(TransferActiveSet(coarse.space, coarse.u, lowerH, fine, parent, lowerh, uh));
-  PetscCall(VecDestroy(&lowerh));
-  PetscCall(VecDestroy(&lowerH));
-  PetscCall(StagePop(Stage::Solve));
-  PetscCall(SecondsSince(PetscObjectComm((PetscObject)uh), t0, &seconds));
+  seconds = 0;
+  PetscCall(StageTimed(PetscObjectComm((PetscObject)uh), Stage::Solve, seconds, [&]() -> PetscErrorCode {
+    Vec lowerH, lowerh;
+    PetscCall(Prolongate(coarse.space, coarse.u, fine, parent, uh));
+    PetscCall(VecDuplicate(coarse.u, &lowerH));
+    PetscCall(ContactLowerBound(coarse.space, problem, lowerH));
+    PetscCall(VecDuplicate(uh, &lowerh));
+    PetscCall(ContactLowerBound(fine, problem, lowerh));
+    PetscCall(TransferActiveSet(coarse.space, coarse.u, lowerH, fine, parent, lowerh, uh));
+    PetscCall(VecDestroy(&lowerh));
+    return VecDestroy(&lowerH);
+  }));
   PetscFunctionReturn(0);
 }
 
@@ -157,15 +155,8 @@ PetscErrorCode NestedIteration::Carry(MeshSolution &cur, bool &carried)
   double seconds;
   PetscCall(ProlongateLevel(prev_, cur.space, levels_.parent[level_], problem_, cur.u, seconds));
   prolongSeconds_ += seconds;
-  if (fine_.solve.amgReuse.innerType == PCMG && cur.space.element == Element::P1) {
-    PetscLogDouble t0;
-    PetscCall(PetscTime(&t0));
-    PetscCall(StagePush(Stage::Solve));
-    PetscCall(AppendLevelTransfers(nullptr, cur.space, &prev_.space, levels_.parent[level_], problem_, H(), nullptr));
-    PetscCall(StagePop(Stage::Solve));
-    PetscCall(SecondsSince(PetscObjectComm((PetscObject)cur.u), t0, &seconds));
-    prolongSeconds_ += seconds;
-  }
+  if (fine_.solve.amgReuse.innerType == PCMG && cur.space.element == Element::P1)
+    PetscCall(StageTimed(PetscObjectComm((PetscObject)cur.u), Stage::Solve, prolongSeconds_, [&] { return AppendLevelTransfers(nullptr, cur.space, &prev_.space, levels_.parent[level_], problem_, H(), nullptr); }));
   PetscCall(prev_.Destroy());
   std::vector<PetscInt>().swap(levels_.parent[level_]); // used once
   PetscFunctionReturn(0);

@@ -1,4 +1,5 @@
 #include "signorini/stages.h"
+#include "signorini/common.h"
 
 #include <vector>
 
@@ -58,5 +59,19 @@ PetscErrorCode StagePop(Stage s)
 }
 
 PetscLogDouble StageSeconds(Stage s) { return gTotal[(int)s]; }
+
+PetscErrorCode StageTimed(MPI_Comm comm, Stage s, double &seconds, const std::function<PetscErrorCode()> &f)
+{
+  PetscLogDouble t0;
+  double         dt;
+  PetscFunctionBeginUser;
+  PetscCall(PetscTime(&t0));
+  PetscCall(StagePush(s));
+  PetscCall(f());
+  PetscCall(StagePop(s));
+  PetscCall(SecondsSince(comm, t0, &dt));
+  seconds += dt;
+  PetscFunctionReturn(0);
+}
 
 } // namespace signorini

@@ -188,8 +188,6 @@ PetscErrorCode ConvergenceStudy::StartReference()
 PetscErrorCode ConvergenceStudy::Carry(MeshSolution &cur, bool &carried)
 {
   const PetscInt l = step_ % o_.levels;
-  PetscLogDouble t0;
-  double         seconds;
   Space          p1;
   PetscFunctionBeginUser;
   if (refNested_) {
@@ -206,15 +204,10 @@ PetscErrorCode ConvergenceStudy::Carry(MeshSolution &cur, bool &carried)
   const MeshSolution *before = carried ? &solved_.back() : nullptr;
   if (carried) PetscCall(ProlongateLevel(*before, cur.space, parent_[l], problem_, cur.u, carrySeconds_));
   if (!Multigrid()) PetscFunctionReturn(0);
-  PetscCall(PetscTime(&t0));
-  PetscCall(StagePush(Stage::Solve));
   const Space *coarseP1 = cur.space.element == Element::CR ? (l > 0 ? &p1Prev_ : nullptr) : (before ? &before->space : nullptr);
-  PetscCall(AppendLevelTransfers(levels_[l], cur.space, coarseP1, parent_[l], problem_, hierarchy_, &p1));
-  PetscCall(StagePop(Stage::Solve));
+  PetscCall(StageTimed(PetscObjectComm((PetscObject)cur.u), Stage::Solve, carrySeconds_, [&] { return AppendLevelTransfers(levels_[l], cur.space, coarseP1, parent_[l], problem_, hierarchy_, &p1); }));
   PetscCall(SpaceDestroy(p1Prev_));
   p1Prev_ = p1; // (none for P1)
-  PetscCall(SecondsSince(PetscObjectComm((PetscObject)cur.u), t0, &seconds));
-  carrySeconds_ += seconds;
   PetscFunctionReturn(0);
 }
 

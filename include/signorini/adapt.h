@@ -141,7 +141,6 @@ private:
   // solve too)
   double                multigridSeconds_ = 0;
   PetscErrorCode        MultigridCarry(const Space &space);
-  PetscErrorCode        TimeIn(Stage s, double &seconds, const std::function<PetscErrorCode()> &f);
   PetscErrorCode        MultigridLevel(Mat P, PetscInt dofs);
 };
 

@@ -114,9 +114,9 @@ PetscErrorCode ImproveCompanion(const Space &space, const System &sys, std::vect
 // Pushes the Estimate stage: the reconstruction of the space's element, then the estimate from it.
 PetscErrorCode EstimateError(const Space &space, const Problem &problem, const System &sys, Vec u, Estimate &e);
 // ||tau||_T for the divergence-free affine field tau = sum_j l_j lambda_j (X_j - X_o) / h_F on the simplex T
-// (vertices X, dim x (dim + 1)) whose normal trace is the affine l (values l_j at the vertices j != o, summing
+// (vertices X, dim x (dim + 1), geometry g) whose normal trace is the affine l (values l_j at the vertices j != o, summing
 // to 0) on the face F opposite vertex o and 0 on the other faces (h_F the height over F): then
 // int_F l e = int_T tau . grad e for every e in H^1(T), which bounds Neumann data oscillation (estimate.cpp).
-PetscReal NeumannLiftNorm(PetscInt dim, const PetscReal *X, PetscInt opposite, const PetscReal *l);
+PetscReal NeumannLiftNorm(PetscInt dim, const PetscReal *X, const CellGeometry &g, PetscInt opposite, const PetscReal *l);
 
 } // namespace signorini

@@ -7,6 +7,8 @@
 
 #include <petscsys.h>
 
+#include <functional>
+
 namespace signorini {
 
 enum class Stage { Mesh, Distribute, Refine, Setup, Assemble, Solve, Estimate, Adapt, Error, Output, Count };
@@ -17,5 +19,8 @@ PetscErrorCode StagePush(Stage s);
 PetscErrorCode StagePop(Stage s);
 // Wall-clock seconds spent in the stage on this rank so far.
 PetscLogDouble StageSeconds(Stage s);
+// Runs f in stage s and adds its wall time (the maximum over comm's ranks) to seconds: for a piece of work
+// that a strategy counts in one of its own figures (a step's transfer, the multigrid's set-up).
+PetscErrorCode StageTimed(MPI_Comm comm, Stage s, double &seconds, const std::function<PetscErrorCode()> &f);
 
 } // namespace signorini
