@@ -12,30 +12,28 @@ constexpr PetscReal kTieSlack = 1e-6;
 constexpr PetscReal kInf      = std::numeric_limits<PetscReal>::infinity();
 
 // The global min and max of a set of values ({+inf, -inf} if empty), and the min and -max of this rank's
-// values x in [lo, hi) folded into r (r[0] = min, r[1] = -max, so that one MPI_MIN reduces both).
+// values folded into r (r[0] = min, r[1] = -max, so that one MPI_MIN reduces both).
 struct Range {
   PetscReal min, max;
 };
-inline void Fold(PetscReal *r, PetscReal x, bool in)
+inline void Fold(PetscReal *r, PetscReal x)
 {
-  // Branch-free: the tests of an indicator against a threshold are unpredictable.
-  r[0] = std::min(r[0], in ? x : kInf);
-  r[1] = std::min(r[1], in ? -x : kInf);
+  r[0] = std::min(r[0], x);
+  r[1] = std::min(r[1], -x);
 }
 
-// One pass over the values for the search below: the global sum of the values >= mid (added in the
-// values' order, as any pass would: the same sum bit for bit) and the global ranges of the values in
-// [lo, mid) and in [mid, hi), the two halves the search goes on with.
-PetscErrorCode Split(MPI_Comm comm, const std::vector<PetscReal> &v, PetscReal lo, PetscReal mid, PetscReal hi, PetscReal *sum, Range *below, Range *above)
+// The values still in question, [lo, hi), of this rank, in w[0, n): one step of the search splits them at
+// mid into [lo, mid) (moved to the front, n_below of them) and [mid, hi), and returns the global sum of the
+// upper part and the global ranges of both. Each step keeps one part, so the passes shrink with the
+// search instead of reading every value each time.
+PetscErrorCode Split(MPI_Comm comm, PetscReal *w, size_t n, PetscReal mid, size_t *nBelow, PetscReal *sum, Range *below, Range *above)
 {
   PetscReal s = 0, r[4] = {kInf, kInf, kInf, kInf};
   PetscFunctionBeginUser;
-  for (PetscReal x : v) {
-    const bool up = x >= mid;
-    s += up ? x : 0; // adding +0 leaves s unchanged
-    Fold(r, x, x >= lo && !up);
-    Fold(r + 2, x, up && x < hi);
-  }
+  PetscReal *split = std::partition(w, w + n, [mid](PetscReal x) { return x < mid; });
+  for (PetscReal *x = w; x < split; ++x) Fold(r, *x);
+  for (PetscReal *x = split; x < w + n; ++x) Fold(r + 2, *x), s += *x;
+  *nBelow = (size_t)(split - w);
   PetscCallMPI(MPI_Allreduce(&s, sum, 1, MPIU_REAL, MPI_SUM, comm));
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, r, 4, MPIU_REAL, MPI_MIN, comm));
   *below = {r[0], -r[1]}, *above = {r[2], -r[3]};
@@ -45,44 +43,51 @@ PetscErrorCode Split(MPI_Comm comm, const std::vector<PetscReal> &v, PetscReal l
 
 PetscErrorCode MarkDoerfler(MPI_Comm comm, const std::vector<PetscReal> &eta2, PetscReal theta, std::vector<char> &marked, PetscInt *count)
 {
-  PetscReal total, target;
+  PetscReal total;
   Range     all, none;
+  size_t    n;
   PetscFunctionBeginUser;
   PetscCheck(theta > 0 && theta <= 1, comm, PETSC_ERR_ARG_OUTOFRANGE, "Doerfler parameter %g not in (0, 1]", (double)theta);
   marked.assign(eta2.size(), 0);
-  // The positive indicators span [min, max] and add up to the total (every positive value is >= min).
-  PetscCall(Split(comm, eta2, 0, std::numeric_limits<PetscReal>::min(), kInf, &total, &none, &all));
+  // The positive indicators, the only candidates: they span [min, max] and add up to the total.
+  std::vector<PetscReal> w;
+  w.reserve(eta2.size());
+  for (PetscReal x : eta2)
+    if (x > 0) w.push_back(x);
+  PetscCall(Split(comm, w.data(), w.size(), 0, &n, &total, &none, &all));
   PetscReal t = kInf; // the threshold; inf: nothing to mark
   // theta = 1 asks for every cell with a positive indicator. The sums would decide it at round-off: the
   // smallest indicators may lie below the round-off of the total, and differently on other rank counts.
   if (total > 0 && theta == 1) t = all.min;
   else if (total > 0) {
-    target = theta * total;
-    // S(x) = sum of the values >= x falls as x grows; S(lo) >= target > S(hi) throughout. t is the
-    // smallest value in [lo, hi) once all of them lie within kTieSlack of each other: every value >= t
-    // must then be marked, and marking it reaches the target. Each step's pass also finds the range of
-    // the values in either half, so one pass per step suffices.
-    PetscReal lo = all.min, hi = kInf, s;
+    const PetscReal target = theta * total;
+    // S(x) = sum of the values >= x falls as x grows; S(lo) >= target > S(hi) throughout, the values in
+    // [lo, hi) are w[first, first + n) and sumHi = S(hi). t is the smallest value in [lo, hi) once all of
+    // them lie within kTieSlack of each other: every value >= t must then be marked, and marking it
+    // reaches the target. Each step's pass also finds the range of the values in either half.
+    PetscReal sumHi = 0, s;
+    size_t    first = 0, nBelow;
     Range     in = all, below, above; // in: the values in [lo, hi)
-    PetscCall(Split(comm, eta2, lo, all.max, hi, &s, &below, &above));
-    if (s >= target) lo = all.max, in = above;
-    for (;;) {
-      if (in.max <= in.min * (1 + kTieSlack)) {
+    n              = w.size();
+    for (bool start = true;; start = false) {
+      if (!start && in.max <= in.min * (1 + kTieSlack)) {
         t = in.min;
         break;
       }
       // Bisect geometrically between the extreme values still in question: the indicators span many
-      // orders of magnitude, and each step at least halves their logarithmic spread.
-      const PetscReal mid = std::sqrt(in.min) * std::sqrt(in.max);
-      PetscCall(Split(comm, eta2, lo, mid, hi, &s, &below, &above));
-      if (s >= target) lo = mid, in = above;
-      else hi = mid, in = below;
+      // orders of magnitude, and each step at least halves their logarithmic spread. The first step tries
+      // the largest value alone.
+      const PetscReal mid = start ? all.max : std::sqrt(in.min) * std::sqrt(in.max);
+      PetscCall(Split(comm, w.data() + first, n, mid, &nBelow, &s, &below, &above));
+      if (sumHi + s >= target) first += nBelow, n -= nBelow, in = above; // lo = mid
+      else if (!start) sumHi += s, n = nBelow, in = below;               // hi = mid
+      // (the largest values alone not enough: the search starts from all of them, hi = inf)
     }
   }
-  PetscInt n = 0;
+  PetscInt nMarked = 0;
   for (size_t i = 0; i < eta2.size(); ++i)
-    if (eta2[i] > 0 && eta2[i] >= t * (1 - kTieSlack)) marked[i] = 1, ++n;
-  if (count) PetscCallMPI(MPI_Allreduce(&n, count, 1, MPIU_INT, MPI_SUM, comm));
+    if (eta2[i] > 0 && eta2[i] >= t * (1 - kTieSlack)) marked[i] = 1, ++nMarked;
+  if (count) PetscCallMPI(MPI_Allreduce(&nMarked, count, 1, MPIU_INT, MPI_SUM, comm));
   PetscFunctionReturn(0);
 }
 
