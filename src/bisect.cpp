@@ -49,6 +49,7 @@
 
 #include <algorithm>
 #include <array>
+#include <memory>
 #include <numeric>
 #include <tuple>
 
@@ -403,10 +404,10 @@ struct Children {
   std::vector<char>     on;      // nv per child: the parent's vertices (bit k: its vertex k) that the
                                  // child's vertex lies on (one: that vertex; two: their edge's midpoint)
   std::vector<PetscInt> start;   // children of coarse cell c: start[c] .. start[c + 1]
-  std::vector<PetscReal> x;      // 3 per local id (midpoints of unmarked edges unused)
+  std::unique_ptr<PetscReal[]> x; // 3 per local id (midpoints of unmarked edges unset, unused)
 };
 
-PetscReal Det(const Coarse &m, const std::vector<PetscReal> &x, const PetscInt *v)
+PetscReal Det(const Coarse &m, const PetscReal *x, const PetscInt *v)
 {
   PetscReal J[3][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
   for (PetscInt k = 0; k < m.dim; ++k)
@@ -417,35 +418,58 @@ PetscReal Det(const Coarse &m, const std::vector<PetscReal> &x, const PetscInt *
 
 // Cuts every cell by its marked edges in the global order, and turns each child to PETSc's orientation
 // (triangles counter-clockwise, tetrahedra with det[v1 - v0, v2 - v0, v3 - v0] < 0): with the cones of
-// MakeCones, cells of positive Jacobian.
+// MakeCones, cells of positive Jacobian. Most cells of an adaptive step have no marked edge: such a cell
+// is its own only child, written without the pieces' lists.
 void Cut(const Coarse &m, const EdgeOrder &before, const std::vector<char> &mark, Children &ch)
 {
-  const PetscInt nV = m.NumVertices(), nb = m.dim + 1;
+  const PetscInt nV = m.NumVertices(), nb = m.dim + 1, nc = m.NumCells();
   ch.nv = nb;
-  ch.x.assign(3 * (nV + m.NumEdges()), 0.0);
-  std::copy(m.x.begin(), m.x.end(), ch.x.begin());
+  // Coordinates of the coarse vertices and of the midpoints of marked edges (the others are never read,
+  // and are left unwritten: on a mesh of millions of edges, writing them cost more than cutting).
+  ch.x.reset(new PetscReal[3 * (nV + m.NumEdges())]);
+  std::copy(m.x.begin(), m.x.end(), ch.x.get());
   for (PetscInt e = 0; e < m.NumEdges(); ++e)
-    for (int d = 0; d < 3; ++d) ch.x[3 * (nV + e) + d] = 0.5 * (m.x[3 * m.edgeVerts[2 * e] + d] + m.x[3 * m.edgeVerts[2 * e + 1] + d]);
-  ch.start.assign(1, 0);
-  ch.verts.clear();
-  ch.on.clear();
+    if (mark[e])
+      for (int d = 0; d < 3; ++d) ch.x[3 * (nV + e) + d] = 0.5 * (m.x[3 * m.edgeVerts[2 * e] + d] + m.x[3 * m.edgeVerts[2 * e + 1] + d]);
   // A child's vertices (local ids) and the parent's vertices each lies on (bits, see Children::on).
   struct Piece {
     std::array<PetscInt, 4> v;
     std::array<char, 4>     on;
   };
-  std::vector<Piece>    cur, next;
-  std::vector<PetscInt> cuts;
-  const PetscReal       sign = m.dim == 2 ? 1 : -1;
-  for (PetscInt c = 0; c < m.NumCells(); ++c) {
-    cur.assign(1, {{0, 0, 0, 0}, {1, 2, 4, 8}});
-    std::copy(&m.cellVerts[nb * c], &m.cellVerts[nb * c] + nb, cur[0].v.begin());
-    cuts.clear();
+  const PetscReal sign = m.dim == 2 ? 1 : -1;
+  const auto      emit = [&](Piece &t) {
+    if (Det(m, ch.x.get(), t.v.data()) * sign < 0) std::swap(t.v[0], t.v[1]), std::swap(t.on[0], t.on[1]);
+    for (PetscInt k = 0; k < nb; ++k) ch.verts.push_back(t.v[k]), ch.on.push_back(t.on[k]);
+  };
+  // Room for the children: a cell cut by all its edges has 2^(d) of them, at most.
+  PetscInt cutCells = 0;
+  for (PetscInt c = 0; c < nc; ++c) {
+    bool any = false;
+    for (PetscInt k = 0; k < m.nce; ++k) any |= mark[m.cellEdges[m.nce * c + k]] != 0;
+    cutCells += any;
+  }
+  const size_t room = (size_t)nb * (nc + ((1 << m.dim) - 1) * cutCells);
+  ch.verts.clear(), ch.on.clear(), ch.start.clear();
+  ch.verts.reserve(room), ch.on.reserve(room), ch.start.reserve(nc + 1);
+  ch.start.push_back(0);
+  std::vector<Piece> cur, next;
+  PetscInt           cuts[6];
+  for (PetscInt c = 0; c < nc; ++c) {
+    Piece whole{{0, 0, 0, 0}, {1, 2, 4, 8}};
+    std::copy(&m.cellVerts[nb * c], &m.cellVerts[nb * c] + nb, whole.v.begin());
+    PetscInt ncuts = 0;
     for (PetscInt k = 0; k < m.nce; ++k)
-      if (mark[m.cellEdges[m.nce * c + k]]) cuts.push_back(m.cellEdges[m.nce * c + k]);
-    std::sort(cuts.begin(), cuts.end(), before);
-    for (PetscInt e : cuts) {
-      const PetscInt a = m.edgeVerts[2 * e], b = m.edgeVerts[2 * e + 1], mid = nV + e;
+      if (mark[m.cellEdges[m.nce * c + k]]) cuts[ncuts++] = m.cellEdges[m.nce * c + k];
+    if (ncuts == 0) {
+      emit(whole);
+      ch.start.push_back((PetscInt)(ch.verts.size() / nb));
+      continue;
+    }
+    for (PetscInt i = 1; i < ncuts; ++i) // at most six: by insertion
+      for (PetscInt j = i; j > 0 && before(cuts[j], cuts[j - 1]); --j) std::swap(cuts[j], cuts[j - 1]);
+    cur.assign(1, whole);
+    for (PetscInt i = 0; i < ncuts; ++i) {
+      const PetscInt e = cuts[i], a = m.edgeVerts[2 * e], b = m.edgeVerts[2 * e + 1], mid = nV + e;
       next.clear();
       for (const Piece &t : cur) {
         const auto ia = std::find(t.v.begin(), t.v.begin() + nb, a) - t.v.begin(), ib = std::find(t.v.begin(), t.v.begin() + nb, b) - t.v.begin();
@@ -459,11 +483,7 @@ void Cut(const Coarse &m, const EdgeOrder &before, const std::vector<char> &mark
       }
       cur.swap(next);
     }
-    for (Piece &t : cur) {
-      if (Det(m, ch.x, t.v.data()) * sign < 0) std::swap(t.v[0], t.v[1]), std::swap(t.on[0], t.on[1]);
-      ch.verts.insert(ch.verts.end(), t.v.begin(), t.v.begin() + nb);
-      ch.on.insert(ch.on.end(), t.on.begin(), t.on.begin() + nb);
-    }
+    for (Piece &t : cur) emit(t);
     ch.start.push_back((PetscInt)(ch.verts.size() / nb));
   }
 }
