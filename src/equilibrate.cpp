@@ -451,7 +451,7 @@ public:
     coupled_    = false;
     for (PetscInt e = 0; e < n && mayCouple_; ++e) coupled_ |= corners[e].mass != nullptr;
     if (nb_ == 3 && !generic && !coupled_ && Chain()) return SolveChain(flux);
-    MatchFaces();
+    MatchFaces(generic);
     d_.resize(n);
     for (;;) {
       Unknowns();
@@ -634,19 +634,88 @@ private:
     PetscReal hinv, c, x;
   };
 
-  // The faces containing a, matched between the patch's cells by their other vertices' global numbers
-  // (one in 2D, two in 3D, smaller first, packed in one integer) through a small open-addressing hash
-  // table (a sort costs more at 70 faces in 3D): partner_[slot] is the other cell's slot of the face, -1
-  // for a boundary face (and for the face opposite a).
-  void MatchFaces()
+  // The faces containing a, matched between the patch's cells: partner_[slot] is the other cell's slot of
+  // the face, -1 for a boundary face (and for the face opposite a). A face containing a is known by its
+  // other vertices (one in 2D, two in 3D). These get small numbers first (a patch has some 14 of them in
+  // 3D, each in about 5 cells), and a face is then a place in a table of kSmall x kSmall, which pairs
+  // its two slots without a search: the open-addressing search over the faces' vertex pairs that this
+  // replaces was the patch problem's largest part in 3D, most of it the branch between a face met for the
+  // first and for the second time, which no predictor can foresee. A patch with more than kSmall other
+  // vertices falls back to that search (MatchFacesHashed), and so does every patch with generic.
+  void MatchFaces(bool generic)
+  {
+    const PetscInt nslots = n_ * nb_;
+    partner_.resize(nslots + 1); // the last place takes the writes of a face met the first time
+    forced_.assign(nslots, 0);
+    if (stamp_ == INT32_MAX) NewTables();
+    ++stamp_; // entries of earlier patches (an older stamp) count as empty: no clearing per patch
+    if (generic || !MatchFacesSmall()) MatchFacesHashed();
+  }
+  static constexpr PetscInt kSmall = 32, kVertexBuckets = 128;
+  struct VertexBucket {
+    PetscInt id, stamp, small;
+  };
+  struct FaceEntry {
+    PetscInt slot, stamp;
+  };
+  void NewTables()
+  {
+    table_.assign(table_.size(), Bucket{0, -1, 0});
+    vertexTable_.assign(kVertexBuckets, VertexBucket{0, -1, 0});
+    faceTable_.assign(kSmall * kSmall, FaceEntry{-1, -1});
+    stamp_ = 0;
+  }
+  // The small number of vertex id in this patch, given at its first sight; -1 once there are kSmall.
+  PetscInt SmallNumber(PetscInt id, PetscInt &count)
+  {
+    uint32_t      h = ((uint32_t)id * 2654435761u) >> 25; // 7 bits: kVertexBuckets
+    VertexBucket *b = &vertexTable_[h];
+    while (b->stamp == stamp_ && b->id != id) h = (h + 1) & (kVertexBuckets - 1), b = &vertexTable_[h];
+    if (b->stamp != stamp_) {
+      if (count == kSmall) return -1;
+      *b = {id, stamp_, count++};
+    }
+    return b->small;
+  }
+  bool MatchFacesSmall()
+  {
+    if (vertexTable_.empty()) NewTables(), ++stamp_;
+    PetscInt count = 0;
+    for (PetscInt e = 0; e < n_; ++e) {
+      const CornerView &c = corners_[e];
+      PetscInt          k[4]; // the small numbers of the cell's vertices (the centre's unused)
+      for (PetscInt j = 0; j < nb_; ++j)
+        if (j != c.corner && (k[j] = SmallNumber(c.vert[j], count)) < 0) return false;
+      for (PetscInt j = 0; j < nb_; ++j) {
+        const PetscInt slot = e * nb_ + j;
+        if (j == c.corner) {
+          partner_[slot] = -1;
+          continue;
+        }
+        PetscInt place;
+        if (nb_ == 3) place = k[3 - c.corner - j];
+        else {
+          const PetscInt *o = kOther[c.corner][j], p = k[o[0]], q = k[o[1]];
+          place             = p < q ? p * kSmall + q : q * kSmall + p;
+        }
+        FaceEntry     &f    = faceTable_[place];
+        const bool     met  = f.stamp == stamp_;
+        const PetscInt prev = met ? f.slot : -1;
+        partner_[slot]                  = prev;
+        partner_[met ? prev : n_ * nb_] = slot; // the spare place when met the first time
+        f                               = {slot, stamp_};
+      }
+    }
+    return true;
+  }
+  // The same by the faces' other vertices' numbers (smaller first, packed in one integer) through a
+  // small open-addressing hash table.
+  void MatchFacesHashed()
   {
     const PetscInt nslots = n_ * nb_;
     size_t         size   = std::max<size_t>(table_.size(), 16);
     while (size < (size_t)(2 * nslots)) size *= 2;
-    if (size > table_.size() || stamp_ == INT32_MAX) table_.assign(size, Bucket{0, -1, 0}), stamp_ = 0;
-    ++stamp_; // the buckets of earlier patches (an older stamp) count as empty: no clearing per patch
-    partner_.resize(nslots);
-    forced_.assign(nslots, 0);
+    if (size > table_.size()) table_.assign(size, Bucket{0, -1, 0});
     for (PetscInt e = 0; e < n_; ++e) {
       const CornerView &c = corners_[e];
       for (PetscInt j = 0; j < nb_; ++j) {
@@ -856,8 +925,10 @@ private:
     uint64_t key;
     PetscInt slot, stamp;
   };
-  std::vector<Bucket>    table_;
-  PetscInt               stamp_ = 0;
+  std::vector<Bucket>       table_;
+  std::vector<VertexBucket> vertexTable_;
+  std::vector<FaceEntry>    faceTable_;
+  PetscInt                  stamp_ = 0;
   std::vector<uint64_t>  adj_;
   std::vector<char>      forced_;
   std::vector<PetscInt>  partner_, start_, nz_;

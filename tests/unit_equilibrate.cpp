@@ -13,7 +13,8 @@
 //   - the same F on 2 ranks as for the same scene built and solved on one rank (PETSC_COMM_SELF);
 //   - all of the above on cells of aspect ratio 1000 too (the patch problems in the full mass matrices);
 //   - the same flux from the 2D patch solve along the cells around each vertex (cycle or path, the
-//     default) as from the general sparse elimination of the same patch problems (to round-off).
+//     default) as from the general sparse elimination of the same patch problems (to round-off), and in
+//     3D from the faces matched through small vertex numbers (the default) as by hashing their vertices.
 #include "signorini/contact.h"
 #include "signorini/estimate.h"
 #include "signorini/mesh.h"
@@ -265,7 +266,8 @@ static PetscErrorCode CheckSameAsOneRank(unit::Checker &ck, const std::string &t
   PetscFunctionReturn(0);
 }
 
-// The default patch solve (2D: along the cycle or path of cells around the vertex) against the general one.
+// The default patch solve (2D: along the cycle or path of cells around the vertex; 3D and stretched 2D
+// cells: faces matched through small vertex numbers) against the general one (faces matched by hashing).
 static PetscErrorCode CheckSameAsGeneric(unit::Checker &ck, const std::string &tag, const Solved &s)
 {
   Reconstruction generic;

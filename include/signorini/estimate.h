@@ -104,7 +104,8 @@ struct CellFlux {
 // Per element, from the solution u (global vector) of the assembled system.
 PetscErrorCode ReconstructCR(const Space &space, const Problem &problem, const System &sys, Vec u, Reconstruction &r);
 // generic: every vertex patch by the general solve (sparse elimination of the cell graph Laplacian), not the
-// 2D one along the cells' cycle or path around the vertex; the two agree to round-off (unit_equilibrate).
+// 2D one along the cells' cycle or path around the vertex, with its faces matched by a hash of their vertex
+// numbers, not through small numbers of the patch's vertices; the two agree to round-off (unit_equilibrate).
 PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const System &sys, Vec u, Reconstruction &r, bool generic = false);
 // CR: moves the companion towards the conforming function closest to u_h where the vertex average is far
 // from it (see estimate_cr.cpp). vertexSums holds, per local vertex z, this rank's sums over its cells at z
