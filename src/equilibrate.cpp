@@ -647,7 +647,7 @@ private:
     const PetscInt nslots = n_ * nb_;
     partner_.resize(nslots + 1); // the last place takes the writes of a face met the first time
     forced_.assign(nslots, 0);
-    if (stamp_ == INT32_MAX) NewTables();
+    if (vertexTable_.empty() || stamp_ == INT32_MAX) NewTables();
     ++stamp_; // entries of earlier patches (an older stamp) count as empty: no clearing per patch
     if (generic || !MatchFacesSmall()) MatchFacesHashed();
   }
@@ -679,7 +679,6 @@ private:
   }
   bool MatchFacesSmall()
   {
-    if (vertexTable_.empty()) NewTables(), ++stamp_;
     PetscInt count = 0;
     for (PetscInt e = 0; e < n_; ++e) {
       const CornerView &c = corners_[e];
@@ -692,12 +691,8 @@ private:
           partner_[slot] = -1;
           continue;
         }
-        PetscInt place;
-        if (nb_ == 3) place = k[3 - c.corner - j];
-        else {
-          const PetscInt *o = kOther[c.corner][j], p = k[o[0]], q = k[o[1]];
-          place             = p < q ? p * kSmall + q : q * kSmall + p;
-        }
+        const PetscInt *o = FaceOthers(c.corner, j), p = k[o[0]], q = nb_ == 3 ? 0 : k[o[1]];
+        const PetscInt  place = nb_ == 3 ? p : p < q ? p * kSmall + q : q * kSmall + p;
         FaceEntry     &f    = faceTable_[place];
         const bool     met  = f.stamp == stamp_;
         const PetscInt prev = met ? f.slot : -1;
@@ -722,13 +717,9 @@ private:
         const PetscInt slot = e * nb_ + j;
         partner_[slot]      = -1;
         if (j == c.corner) continue;
-        uint64_t key;
-        if (nb_ == 3) key = (uint32_t)c.vert[3 - c.corner - j];
-        else {
-          const PetscInt *o = kOther[c.corner][j]; // the two vertices other than a and j
-          const uint32_t  p = (uint32_t)c.vert[o[0]], q = (uint32_t)c.vert[o[1]];
-          key               = p < q ? (uint64_t)p << 32 | q : (uint64_t)q << 32 | p;
-        }
+        const PetscInt *o = FaceOthers(c.corner, j);
+        const uint32_t  p = (uint32_t)c.vert[o[0]], q = nb_ == 3 ? 0 : (uint32_t)c.vert[o[1]];
+        const uint64_t  key = nb_ == 3 ? p : p < q ? (uint64_t)p << 32 | q : (uint64_t)q << 32 | p;
         size_t  h = (size_t)((key * 0x9E3779B97F4A7C15ull) >> 40) & (size - 1);
         Bucket *b = &table_[h];
         while (b->stamp == stamp_ && b->key != key) h = (h + 1) & (size - 1), b = &table_[h];
@@ -737,6 +728,15 @@ private:
       }
     }
   }
+  // The cell's vertices on face j (opposite vertex j) other than the centre at corner: one in 2D (the first
+  // entry), two in 3D.
+  const PetscInt *FaceOthers(PetscInt corner, PetscInt j) const { return nb_ == 3 ? kOtherTri[corner][j] : kOther[corner][j]; }
+  // kOtherTri[k][j]: the triangle's vertex other than k and j.
+  static constexpr PetscInt kOtherTri[3][3][1] = {
+    {{0}, {2}, {1}},
+    {{2}, {0}, {0}},
+    {{1}, {0}, {0}}
+  };
   // kOther[k][j]: the two cell vertices (of a tetrahedron) other than k and j.
   static constexpr PetscInt kOther[4][4][2] = {
     {{0, 0}, {2, 3}, {1, 3}, {1, 2}},

@@ -43,9 +43,9 @@ PetscErrorCode Split(MPI_Comm comm, PetscReal *w, size_t n, PetscReal mid, size_
 
 PetscErrorCode MarkDoerfler(MPI_Comm comm, const std::vector<PetscReal> &eta2, PetscReal theta, std::vector<char> &marked, PetscInt *count)
 {
-  PetscReal total;
-  Range     all, none;
-  size_t    n;
+  PetscReal total, s;
+  Range     all, below, above;
+  size_t    nBelow;
   PetscFunctionBeginUser;
   PetscCheck(theta > 0 && theta <= 1, comm, PETSC_ERR_ARG_OUTOFRANGE, "Doerfler parameter %g not in (0, 1]", (double)theta);
   marked.assign(eta2.size(), 0);
@@ -54,7 +54,7 @@ PetscErrorCode MarkDoerfler(MPI_Comm comm, const std::vector<PetscReal> &eta2, P
   w.reserve(eta2.size());
   for (PetscReal x : eta2)
     if (x > 0) w.push_back(x);
-  PetscCall(Split(comm, w.data(), w.size(), 0, &n, &total, &none, &all));
+  PetscCall(Split(comm, w.data(), w.size(), 0, &nBelow, &total, &below, &all));
   PetscReal t = kInf; // the threshold; inf: nothing to mark
   // theta = 1 asks for every cell with a positive indicator. The sums would decide it at round-off: the
   // smallest indicators may lie below the round-off of the total, and differently on other rank counts.
@@ -65,24 +65,21 @@ PetscErrorCode MarkDoerfler(MPI_Comm comm, const std::vector<PetscReal> &eta2, P
     // [lo, hi) are w[first, first + n) and sumHi = S(hi). t is the smallest value in [lo, hi) once all of
     // them lie within kTieSlack of each other: every value >= t must then be marked, and marking it
     // reaches the target. Each step's pass also finds the range of the values in either half.
-    PetscReal sumHi = 0, s;
-    size_t    first = 0, nBelow;
-    Range     in = all, below, above; // in: the values in [lo, hi)
-    n              = w.size();
-    for (bool start = true;; start = false) {
-      if (!start && in.max <= in.min * (1 + kTieSlack)) {
-        t = in.min;
-        break;
-      }
+    PetscReal sumHi = 0;
+    size_t    first = 0, n = w.size();
+    Range     in = all; // the values in [lo, hi): lo = min, hi = inf
+    // The largest values alone may be enough (lo = max); if not, the search starts from all of them.
+    PetscCall(Split(comm, w.data(), n, all.max, &nBelow, &s, &below, &above));
+    if (s >= target) first = nBelow, n -= nBelow, in = above;
+    while (in.max > in.min * (1 + kTieSlack)) {
       // Bisect geometrically between the extreme values still in question: the indicators span many
-      // orders of magnitude, and each step at least halves their logarithmic spread. The first step tries
-      // the largest value alone.
-      const PetscReal mid = start ? all.max : std::sqrt(in.min) * std::sqrt(in.max);
+      // orders of magnitude, and each step at least halves their logarithmic spread.
+      const PetscReal mid = std::sqrt(in.min) * std::sqrt(in.max);
       PetscCall(Split(comm, w.data() + first, n, mid, &nBelow, &s, &below, &above));
       if (sumHi + s >= target) first += nBelow, n -= nBelow, in = above; // lo = mid
-      else if (!start) sumHi += s, n = nBelow, in = below;               // hi = mid
-      // (the largest values alone not enough: the search starts from all of them, hi = inf)
+      else sumHi += s, n = nBelow, in = below;                           // hi = mid
     }
+    t = in.min;
   }
   PetscInt nMarked = 0;
   for (size_t i = 0; i < eta2.size(); ++i)
