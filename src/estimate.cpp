@@ -1,11 +1,13 @@
 // The estimate from a reconstruction (estimate.h): the flux, nonconformity, contact and oscillation terms
 // cell by cell, their global sums, the bound eta and the cell indicators.
 #include "signorini/estimate.h"
+#include "signorini/datalift.h"
 #include "signorini/options.h"
 #include "signorini/stages.h"
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 
 namespace signorini {
 
@@ -60,41 +62,59 @@ struct FaceOf {
 //    div tau = sum_j l_j / h_F = 0, so (l, e)_F = int_T tau . grad e <= ||kappa^{-1/2} tau||_T |||e|||_T,
 //    and the rest (g - Pi_1 g, e - e_T)_F by the trace bound. On faces where g is about affine the lifting
 //    is 0.53 to 0.71 of the trace bound (Kuhn tetrahedra).
+// One Neumann face's data: l = Pi_1 g - Pi_0 g at the cell's vertices (FaceLift), and the bounds: trace
+// (of g - Pi_0 g), rest (the trace bound of g - Pi_1 g) and lifted (||kappa^{-1/2} tau|| + rest).
+struct NeumannFace {
+  FaceLift  lift;
+  PetscReal trace, rest, lifted;
+};
+
+NeumannFace NeumannFaceData(const Space &space, const Problem &problem, const System &sys, const BoundaryFace &bf, std::vector<PetscReal> &values, std::vector<PetscReal> &lambdas, std::string &error)
+{
+  const PetscInt    dim = space.dim, nb = space.Nb();
+  const Quadrature &rule = sys.oscFaceRule;
+  const FaceOf      face(space, bf);
+  PetscReal         x[3];
+  values.resize(rule.Size()), lambdas.resize(rule.Size() * nb);
+  problem.g->SetCellSet(space.CellSet(bf.cell));
+  PetscReal mean = 0, dev2 = 0, mu[4] = {0, 0, 0, 0}; // mu_k: the mean of g lambda_k over F
+  for (PetscInt q = 0; q < rule.Size(); ++q) {
+    PetscReal *lambda = &lambdas[q * nb];
+    space.FaceToCell(bf, rule.Point(q), lambda);
+    space.Point(bf.cell, lambda, x);
+    values[q] = problem.g->Scalar(x, dim, error);
+    mean += rule.weights[q] * values[q];
+    for (PetscInt k = 0; k < nb; ++k) mu[k] += rule.weights[q] * values[q] * lambda[k];
+  }
+  // l = Pi_1 g - Pi_0 g = sum_k l_k lambda_k on F: the face's mass matrix |F| (1 + delta_jk) / (d (d + 1))
+  // inverted, less the mean.
+  NeumannFace nf;
+  nf.lift.opposite = bf.opposite;
+  PetscReal *l = nf.lift.l, rest2 = 0;
+  std::fill(l, l + 4, 0.0);
+  for (PetscInt k = 0; k < nb; ++k)
+    if (k != bf.opposite) l[k] = dim * (dim + 1) * mu[k] - (dim + 1) * mean;
+  for (PetscInt q = 0; q < rule.Size(); ++q) {
+    PetscReal p1 = mean;
+    for (PetscInt k = 0; k < nb; ++k) p1 += l[k] * lambdas[q * nb + k];
+    dev2 += rule.weights[q] * (values[q] - mean) * (values[q] - mean);
+    rest2 += rule.weights[q] * (values[q] - p1) * (values[q] - p1);
+  }
+  const PetscReal CP = face.poincare, C2 = face.area * CP / face.g.volume * (CP + 2 * face.reach / dim), kappa = sys.Kappa(bf.cell);
+  nf.trace  = std::sqrt(C2 * dev2 * face.area / kappa);
+  nf.rest   = std::sqrt(C2 * rest2 * face.area / kappa);
+  nf.lifted = (NeumannLiftNorm(dim, face.X, face.g, bf.opposite, l) + std::sqrt(C2 * rest2 * face.area)) / std::sqrt(kappa);
+  return nf;
+}
+
 void AddNeumannOscillation(const Space &space, const Problem &problem, const System &sys, std::vector<PetscReal> &osc, std::string &error)
 {
   if (!problem.HasNeumann() || problem.g->IsConstant()) return;
-  const PetscInt         dim = space.dim, nb = space.Nb();
-  const Quadrature      &rule = sys.oscFaceRule;
-  std::vector<PetscReal> values(rule.Size()), lambdas(rule.Size() * nb);
-  PetscReal              x[3];
+  std::vector<PetscReal> values, lambdas;
   for (const BoundaryFace &bf : space.boundary) {
     if (!InParts(problem.neumann, bf.part)) continue;
-    const FaceOf face(space, bf);
-    problem.g->SetCellSet(space.CellSet(bf.cell));
-    PetscReal mean = 0, dev2 = 0, mu[4] = {0, 0, 0, 0}; // mu_k: the mean of g lambda_k over F
-    for (PetscInt q = 0; q < rule.Size(); ++q) {
-      PetscReal *lambda = &lambdas[q * nb];
-      space.FaceToCell(bf, rule.Point(q), lambda);
-      space.Point(bf.cell, lambda, x);
-      values[q] = problem.g->Scalar(x, dim, error);
-      mean += rule.weights[q] * values[q];
-      for (PetscInt k = 0; k < nb; ++k) mu[k] += rule.weights[q] * values[q] * lambda[k];
-    }
-    // l = Pi_1 g - Pi_0 g = sum_k l_k lambda_k on F: the face's mass matrix |F| (1 + delta_jk) / (d (d + 1))
-    // inverted, less the mean.
-    PetscReal l[4] = {0, 0, 0, 0}, rest2 = 0;
-    for (PetscInt k = 0; k < nb; ++k)
-      if (k != bf.opposite) l[k] = dim * (dim + 1) * mu[k] - (dim + 1) * mean;
-    for (PetscInt q = 0; q < rule.Size(); ++q) {
-      PetscReal p1 = mean;
-      for (PetscInt k = 0; k < nb; ++k) p1 += l[k] * lambdas[q * nb + k];
-      dev2 += rule.weights[q] * (values[q] - mean) * (values[q] - mean);
-      rest2 += rule.weights[q] * (values[q] - p1) * (values[q] - p1);
-    }
-    const PetscReal CP = face.poincare, C2 = face.area * CP / face.g.volume * (CP + 2 * face.reach / dim), kappa = sys.Kappa(bf.cell);
-    const PetscReal trace  = std::sqrt(C2 * dev2 * face.area / kappa);
-    const PetscReal lifted = (NeumannLiftNorm(dim, face.X, face.g, bf.opposite, l) + std::sqrt(C2 * rest2 * face.area)) / std::sqrt(kappa);
-    osc[bf.cell] += std::min(trace, lifted);
+    const NeumannFace nf = NeumannFaceData(space, problem, sys, bf, values, lambdas, error);
+    osc[bf.cell] += std::min(nf.trace, nf.lifted);
   }
 }
 
@@ -149,6 +169,9 @@ PetscErrorCode CellOscillation(const Space &space, const Problem &problem, const
 // The sums over the cells that the bounds need.
 enum Sum { kF2, kN2, kOsc2, kGamma, kFOsc2, kFhOsc2, kFh2, kNumSums };
 
+// The share of eta that the oscillation must make for it to be lifted into the flux (EstimateFromReconstruction).
+constexpr PetscReal kLiftGain = 0.01;
+
 // CellTerms for P1 (v = u_h) from the reconstruction's F_T^2: N_T = 0 and Fh_T = F_T (the same values, so
 // the same sums, as the general loop's).
 void CellTermsP1(const Space &space, const Reconstruction &r, std::vector<PetscReal> &cellEta2, PetscReal *sums)
@@ -157,6 +180,18 @@ void CellTermsP1(const Space &space, const Reconstruction &r, std::vector<PetscR
     const PetscReal f2 = r.fluxTerm[c], o2 = r.oscillation[c] * r.oscillation[c], fo = std::sqrt(f2) + r.oscillation[c];
     cellEta2[c] += f2 + o2;
     sums[kF2] += f2, sums[kOsc2] += o2, sums[kFOsc2] += fo * fo, sums[kFhOsc2] += fo * fo, sums[kFh2] += f2;
+  }
+}
+
+// The gradients of u_h and of the companion v (u_h itself for P1) on cell c.
+template <PetscInt dim>
+void CellGradients(const Space &space, const Reconstruction &r, const PetscScalar *a, PetscInt c, const CellGeometry &g, PetscReal *gu, PetscReal *gv)
+{
+  space.GradD<dim>(c, a, g, gu);
+  for (PetscInt d = 0; d < dim; ++d) gv[d] = 0;
+  for (PetscInt k = 0; k <= dim; ++k) {
+    const PetscReal vk = r.companion.empty() ? PetscRealPart(a[space.Dofs(c)[k]]) : r.companion[space.cellVert[c * (dim + 1) + k]];
+    for (PetscInt d = 0; d < dim; ++d) gv[d] += vk * g.gradLambda[k][d];
   }
 }
 
@@ -171,14 +206,10 @@ void CellTermsD(const Space &space, const System &sys, const Reconstruction &r, 
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
     const Space::Coords X = space.XD<dim>(c);
     CellGeometry        g;
-    PetscReal           gu[3], gv[3] = {0, 0, 0}, w[3], wh[3], n2 = 0;
+    PetscReal           gu[3], gv[3], w[3], wh[3], n2 = 0;
     ComputeCellGeometryD<dim>(X, g);
-    space.GradD<dim>(c, a, g, gu);
+    CellGradients<dim>(space, r, a, c, g, gu, gv);
     const PetscReal kappa = sys.Kappa(c);
-    for (PetscInt k = 0; k < nb; ++k) {
-      const PetscReal vk = r.companion.empty() ? PetscRealPart(a[space.Dofs(c)[k]]) : r.companion[space.cellVert[c * nb + k]];
-      for (PetscInt d = 0; d < dim; ++d) gv[d] += vk * g.gradLambda[k][d];
-    }
     for (PetscInt d = 0; d < dim; ++d) {
       w[d]  = kappa * gv[d];
       wh[d] = kappa * gu[d];
@@ -202,6 +233,94 @@ void CellTerms(const Space &space, const System &sys, const Reconstruction &r, c
 {
   if (!r.fluxTerm.empty()) CellTermsP1(space, r, cellEta2, sums);
   else WithDim(space.dim, [&](auto D) { CellTermsD<D>(space, sys, r, a, cellEta2, sums, vertexSums); });
+}
+
+// The Neumann faces of each local cell with their data (NeumannFaceData): faces[start[c] .. start[c + 1]).
+struct NeumannFaces {
+  std::vector<PetscInt>    start;
+  std::vector<NeumannFace> faces;
+};
+
+void CollectNeumannFaces(const Space &space, const Problem &problem, const System &sys, NeumannFaces &nf, std::string &error)
+{
+  nf.start.assign(space.NumCells() + 1, 0);
+  nf.faces.clear();
+  if (!problem.HasNeumann() || problem.g->IsConstant()) return;
+  std::vector<PetscReal> values, lambdas;
+  std::vector<NeumannFace> found;
+  std::vector<PetscInt>    cellOf;
+  for (const BoundaryFace &bf : space.boundary)
+    if (InParts(problem.neumann, bf.part)) {
+      found.push_back(NeumannFaceData(space, problem, sys, bf, values, lambdas, error));
+      cellOf.push_back(bf.cell);
+      ++nf.start[bf.cell + 1];
+    }
+  std::partial_sum(nf.start.begin(), nf.start.end(), nf.start.begin());
+  nf.faces.resize(found.size());
+  std::vector<PetscInt> fill(nf.start.begin(), nf.start.end() - 1);
+  for (size_t i = 0; i < found.size(); ++i) nf.faces[fill[cellOf[i]]++] = found[i];
+}
+
+// The cell terms with the data's affine parts lifted into the flux (datalift.h): sigma = sigma0 + tau on
+// every cell, div sigma = -Pi_1 f, sigma.n = Pi_1 g on Gamma_N, and the oscillation that of f - Pi_1 f
+// (Poincare, Pi_1 f keeps the mean) and g - Pi_1 g (the trace bound). Pi_1 f and ||f - Pi_1 f|| by the
+// oscillation's rule. The same sums as CellTermsD.
+template <PetscInt dim>
+void LiftedCellTermsD(const Space &space, const Problem &problem, const System &sys, const Reconstruction &r, const PetscScalar *a, const NeumannFaces &nf, std::vector<PetscReal> &cellEta2, PetscReal *sums, std::string &error)
+{
+  constexpr PetscInt     nb   = dim + 1;
+  const Quadrature      &rule = sys.oscCellRule;
+  const bool             fvar = !problem.f->IsConstant();
+  std::vector<PetscReal> x(rule.Size() * dim), fx(rule.Size());
+  FaceLift               lifts[4];
+  for (PetscInt c = 0; c < space.NumCells(); ++c) {
+    const Space::Coords X = space.XD<dim>(c);
+    CellGeometry        g;
+    PetscReal           gu[3], gv[3], n2 = 0;
+    ComputeCellGeometryD<dim>(X, g);
+    CellGradients<dim>(space, r, a, c, g, gu, gv);
+    const PetscReal kappa = sys.Kappa(c);
+    for (PetscInt d = 0; d < dim; ++d) n2 += (gu[d] - gv[d]) * (gu[d] - gv[d]);
+    n2 *= kappa * g.volume;
+    // w - sigma0 and wh - sigma0 at the vertices: sigma0(X_m) = sum_k Phi_k (X_m - X_k) / (d |T|).
+    const PetscReal *phi = &r.flux[c * nb];
+    PetscReal        D[nb * dim], Dh[nb * dim];
+    for (PetscInt m = 0; m < nb; ++m)
+      for (PetscInt d = 0; d < dim; ++d) {
+        PetscReal s0 = 0;
+        for (PetscInt k = 0; k < nb; ++k) s0 += phi[k] * (X[m * dim + d] - X[k * dim + d]);
+        s0 /= dim * g.volume;
+        D[m * dim + d] = kappa * gv[d] - s0, Dh[m * dim + d] = kappa * gu[d] - s0;
+      }
+    // The load's affine part l (mean zero) and ||f - Pi_1 f||^2, by the oscillation's rule.
+    PetscReal lf[nb] = {}, oscf = 0;
+    if (fvar) {
+      for (PetscInt q = 0; q < rule.Size(); ++q) SimplexPoint(dim, X.x, rule.Point(q), &x[q * dim]);
+      problem.f->SetCellSet(space.CellSet(c));
+      problem.f->EvalBatch(rule.Size(), x.data(), dim, nullptr, fx.data(), error);
+      PetscReal mean = 0, mu[nb] = {}, rest2 = 0;
+      for (PetscInt q = 0; q < rule.Size(); ++q) {
+        mean += rule.weights[q] * fx[q];
+        for (PetscInt k = 0; k < nb; ++k) mu[k] += rule.weights[q] * fx[q] * rule.Point(q)[k];
+      }
+      for (PetscInt k = 0; k < nb; ++k) lf[k] = nb * (nb + 1) * mu[k] - (nb + 1) * mean;
+      for (PetscInt q = 0; q < rule.Size(); ++q) {
+        PetscReal p1 = mean;
+        for (PetscInt k = 0; k < nb; ++k) p1 += lf[k] * rule.Point(q)[k];
+        rest2 += rule.weights[q] * (fx[q] - p1) * (fx[q] - p1);
+      }
+      if (rest2 > 0) oscf = PoincareConstant(dim, X.x) * std::sqrt(rest2 * g.volume / kappa);
+    }
+    PetscInt  nfaces = 0;
+    PetscReal oscg   = 0;
+    for (PetscInt i = nf.start[c]; i < nf.start[c + 1]; ++i) lifts[nfaces++] = nf.faces[i].lift, oscg += nf.faces[i].rest;
+    PetscReal r2, rh2;
+    LiftCell(dim, X.x, g, lf, nfaces, lifts, D, Dh, &r2, &rh2);
+    const PetscReal f2 = r2 / kappa, fh2 = rh2 / kappa, osc = oscf + oscg, o2 = osc * osc;
+    cellEta2[c] += f2 + n2 + o2;
+    const PetscReal fo = std::sqrt(f2) + osc, fho = std::sqrt(fh2) + osc;
+    sums[kF2] += f2, sums[kN2] += n2, sums[kOsc2] += o2, sums[kFOsc2] += fo * fo, sums[kFhOsc2] += fho * fho, sums[kFh2] += fh2;
+  }
 }
 
 // The terms the bounds are made of (global): N = |||u_h - v|||, F = ||kappa^{-1/2}(kappa grad v - sigma)||,
@@ -293,13 +412,36 @@ PetscErrorCode EstimateFromReconstruction(const Space &space, const Problem &pro
     again = false;
     if (improve) PetscCall(ImproveCompanion(space, sys, vertexSums, sums[kN2], r, again));
   }
-  PetscCall(VecRestoreArrayRead(loc, &a));
-  PetscCall(DMRestoreLocalVector(space.dm, &loc));
   e.flux          = std::sqrt(sums[kF2]);
   e.nonconformity = std::sqrt(sums[kN2]);
   e.oscillation   = std::sqrt(sums[kOsc2]);
   e.contact       = sums[kGamma];
   e.eta           = Bound({e.nonconformity, e.flux, std::sqrt(sums[kFh2]), e.oscillation, std::sqrt(sums[kFOsc2]), std::sqrt(sums[kFhOsc2]), e.contact});
+  // Where the oscillation weighs in eta (coarse meshes, rough data), the data's affine parts lifted into
+  // the flux (datalift.h) give a second guaranteed bound, about the bound without oscillation (the
+  // linear term gone, the lifted fields in F^2 instead); eta is the smaller of the two. Where the
+  // oscillation changes eta by less than kLiftGain, the pass over the cells (with f evaluated again, a few
+  // times the cost of the first pass) is left out.
+  const PetscReal withoutOsc = Bound({e.nonconformity, e.flux, std::sqrt(sums[kFh2]), 0, e.flux, std::sqrt(sums[kFh2]), e.contact});
+  if (e.eta - withoutOsc > kLiftGain * e.eta) {
+    NeumannFaces           nf;
+    std::vector<PetscReal> cellEta2(space.NumCells(), 0.0);
+    PetscReal              lifted[kNumSums] = {0};
+    CollectNeumannFaces(space, problem, sys, nf, error);
+    lifted[kGamma] = ContactTerm(space, problem, sys, r, a, cellEta2, error);
+    WithDim(space.dim, [&](auto D) { LiftedCellTermsD<D>(space, problem, sys, r, a, nf, cellEta2, lifted, error); });
+    PetscCall(CheckAll(comm, error.empty(), error));
+    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, lifted, kNumSums, MPIU_REAL, MPI_SUM, comm));
+    const PetscReal eta = Bound({std::sqrt(lifted[kN2]), std::sqrt(lifted[kF2]), std::sqrt(lifted[kFh2]), std::sqrt(lifted[kOsc2]), std::sqrt(lifted[kFOsc2]), std::sqrt(lifted[kFhOsc2]), lifted[kGamma]});
+    if (eta < e.eta) {
+      e.eta         = eta;
+      e.flux        = std::sqrt(lifted[kF2]);
+      e.oscillation = std::sqrt(lifted[kOsc2]);
+      e.cellEta2    = std::move(cellEta2);
+    }
+  }
+  PetscCall(VecRestoreArrayRead(loc, &a));
+  PetscCall(DMRestoreLocalVector(space.dm, &loc));
   PetscFunctionReturn(0);
 }
 } // namespace

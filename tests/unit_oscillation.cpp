@@ -15,6 +15,7 @@
 // only if tau's normal trace is l on F and 0 on the other faces and div tau = 0), and the norm against
 // the quadrature of |tau|^2, on random and flat triangles and tetrahedra, every face.
 #include "signorini/assembly.h"
+#include "signorini/datalift.h"
 #include "signorini/estimate.h"
 #include "signorini/quadrature.h"
 #include "unit_check.h"
@@ -239,6 +240,33 @@ double FaceArea(int dim, const Cell &X, int o)
   return std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]) / 2;
 }
 
+// A random quadratic e(x) = e0 + beta . x + x^T G x and its gradient.
+struct Quadratic {
+  int    dim;
+  double e0, beta[3], G[3][3];
+  Quadratic(int dim_, std::mt19937 &gen, std::uniform_real_distribution<double> &u) : dim(dim_), e0(u(gen)), beta{u(gen), u(gen), u(gen)}
+  {
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b <= a; ++b) G[a][b] = G[b][a] = u(gen);
+  }
+  double operator()(const double *x) const
+  {
+    double v = e0;
+    for (int a = 0; a < dim; ++a) {
+      v += beta[a] * x[a];
+      for (int b = 0; b < dim; ++b) v += x[a] * G[a][b] * x[b];
+    }
+    return v;
+  }
+  void Grad(const double *x, double *grad) const
+  {
+    for (int a = 0; a < dim; ++a) {
+      grad[a] = beta[a];
+      for (int b = 0; b < dim; ++b) grad[a] += 2 * G[a][b] * x[b];
+    }
+  }
+};
+
 void TestLift(unit::Checker &ck, int dim)
 {
   const std::string                      tag = std::to_string(dim) + "D";
@@ -252,21 +280,12 @@ void TestLift(unit::Checker &ck, int dim)
     for (int i = 0; i < (int)X.size(); ++i) X[i] = u(gen) * (trial % 4 == 3 && i % dim == dim - 1 ? 0.02 : 1.0); // every fourth flat
     const double vol = Volume(dim, X);
     for (int o = 0; o <= dim; ++o, ++n) {
-      double l[4] = {0, 0, 0, 0}, sum = 0, e0 = u(gen), beta[3] = {u(gen), u(gen), u(gen)}, G[3][3];
+      double l[4] = {0, 0, 0, 0}, sum = 0;
       for (int j = 0; j <= dim; ++j)
         if (j != o) l[j] = u(gen), sum += l[j];
       for (int j = 0; j <= dim; ++j)
         if (j != o) l[j] -= sum / dim; // mean zero on the face
-      for (int a = 0; a < 3; ++a)
-        for (int b = 0; b <= a; ++b) G[a][b] = G[b][a] = u(gen);
-      const auto e = [&](const double *x) {
-        double v = e0;
-        for (int a = 0; a < dim; ++a) {
-          v += beta[a] * x[a];
-          for (int b = 0; b < dim; ++b) v += x[a] * G[a][b] * x[b];
-        }
-        return v;
-      };
+      const Quadratic e(dim, gen, u);
       const double area = FaceArea(dim, X, o), h = dim * vol / area;
       // int_F l e by the face rule, l = sum_j l_j lambda_j
       double lhs = 0;
@@ -290,10 +309,7 @@ void TestLift(unit::Checker &ck, int dim)
             x[d] += lambda[j] * X[j * dim + d];
             if (j != o) tau[d] += l[j] * lambda[j] * (X[j * dim + d] - X[o * dim + d]) / h;
           }
-        for (int a = 0; a < dim; ++a) {
-          grad[a] = beta[a];
-          for (int b = 0; b < dim; ++b) grad[a] += 2 * G[a][b] * x[b];
-        }
+        e.Grad(x, grad);
         for (int d = 0; d < dim; ++d) rhs += cellRule.weights[q] * vol * tau[d] * grad[d], tau2 += cellRule.weights[q] * vol * tau[d] * tau[d];
       }
       signorini::CellGeometry g;
@@ -305,6 +321,105 @@ void TestLift(unit::Checker &ck, int dim)
   }
   ck.Check(worstGreen < 1e-12, tag + " lifting: int_F l e = int_T tau . grad e (" + std::to_string(n) + " faces, random quadratic e)", "largest relative difference %.3g", worstGreen);
   ck.Check(worstNorm < 1e-12, tag + " lifting: NeumannLiftNorm^2 = the quadrature of |tau|^2", "largest relative difference %.3g", worstNorm);
+}
+
+// 3. LiftCell (datalift.h): the field tau added to the flux of one cell, for random affine parts of f and of g
+// on a random set of the cell's faces and random affine D, Dh, on random and flat cells:
+//  - Green's identity int_T tau . grad e = int_T l_f e + sum_F int_F l_F e for random quadratic e, which holds
+//    for every such e only if div tau = -l_f and tau.n = l_F on the chosen faces and 0 on the others;
+//  - the returned ||D - tau||^2 and ||Dh - tau||^2 against their quadrature;
+//  - its free part is the minimiser: (D - tau, C) + (Dh - tau, C) = 0 for the divergence-free fields C =
+//    B_ab + B_bc + B_ca (B_ij = lambda_i lambda_j (X_j - X_i)) of every triangle (a, b, c) of the cell's vertices.
+void TestLiftCell(unit::Checker &ck, int dim)
+{
+  const std::string                      tag = std::to_string(dim) + "D";
+  const int                              nb = dim + 1;
+  const signorini::Quadrature            cellRule = signorini::SimplexQuadrature(dim, 4), faceRule = signorini::SimplexQuadrature(dim - 1, 4);
+  std::mt19937                           gen(41 + dim);
+  std::uniform_real_distribution<double> u(-1, 1);
+  double                                 worstGreen = 0, worstNorm = 0, worstStationary = 0;
+  int                                    faces = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    Cell X(nb * dim);
+    for (int i = 0; i < (int)X.size(); ++i) X[i] = u(gen) * (trial % 4 == 3 && i % dim == dim - 1 ? 0.02 : 1.0); // every fourth flat
+    const double vol = Volume(dim, X);
+    signorini::CellGeometry g;
+    signorini::ComputeCellGeometry(dim, X.data(), g);
+    double lf[4] = {0, 0, 0, 0}, sum = 0, D[12], Dh[12];
+    for (int k = 0; k < nb; ++k) lf[k] = u(gen), sum += lf[k];
+    for (int k = 0; k < nb; ++k) lf[k] -= sum / nb;
+    for (int i = 0; i < nb * dim; ++i) D[i] = u(gen), Dh[i] = D[i] + 0.3 * u(gen);
+    std::vector<signorini::FaceLift> lifts;
+    for (int o = 0; o <= dim; ++o) {
+      if ((trial + o) % 3 == 0) continue; // about two faces in three
+      signorini::FaceLift f{o, {0, 0, 0, 0}};
+      double              fs = 0;
+      for (int j = 0; j <= dim; ++j)
+        if (j != o) f.l[j] = u(gen), fs += f.l[j];
+      for (int j = 0; j <= dim; ++j)
+        if (j != o) f.l[j] -= fs / dim;
+      lifts.push_back(f);
+    }
+    faces += (int)lifts.size();
+    double tau[30], r2, rh2;
+    signorini::LiftCell(dim, X.data(), g, lf, (PetscInt)lifts.size(), lifts.data(), D, Dh, &r2, &rh2, tau);
+    const Quadratic e(dim, gen, u);
+    const auto      point = [&](const double *lambda, double *x) {
+      for (int d = 0; d < dim; ++d) x[d] = 0;
+      for (int j = 0; j <= dim; ++j)
+        for (int d = 0; d < dim; ++d) x[d] += lambda[j] * X[j * dim + d];
+    };
+    // The right-hand side: int_T l_f e and int_F l_F e by the rules.
+    double rhs = 0, scale = 0;
+    for (const signorini::FaceLift &f : lifts) {
+      const double area = FaceArea(dim, X, (int)f.opposite);
+      for (PetscInt q = 0; q < faceRule.Size(); ++q) {
+        double lambda[4] = {0, 0, 0, 0}, x[3], lq = 0;
+        for (int j = 0, m = 0; j <= dim; ++j)
+          if (j != f.opposite) lambda[j] = faceRule.Point(q)[m++];
+        for (int j = 0; j <= dim; ++j) lq += f.l[j] * lambda[j];
+        point(lambda, x);
+        rhs += faceRule.weights[q] * area * lq * e(x), scale += faceRule.weights[q] * area * std::abs(lq * e(x));
+      }
+    }
+    // The cycles' fields at a point.
+    const int  cycles[4][3] = {{0, 1, 2}, {0, 1, 3}, {0, 2, 3}, {1, 2, 3}};
+    const int  numCycles    = dim == 2 ? 1 : 4;
+    const auto cycle        = [&](int t, const double *lambda, double *c) {
+      for (int d = 0; d < dim; ++d) c[d] = 0;
+      for (int s = 0; s < 3; ++s) {
+        const int a = cycles[t][s], b = cycles[t][(s + 1) % 3];
+        for (int d = 0; d < dim; ++d) c[d] += lambda[a] * lambda[b] * (X[b * dim + d] - X[a * dim + d]);
+      }
+    };
+    double lhs = 0, q2 = 0, qh2 = 0, dC[4] = {0, 0, 0, 0}, dScale[4] = {0, 0, 0, 0};
+    for (PetscInt q = 0; q < cellRule.Size(); ++q) {
+      const double *lambda = cellRule.Point(q);
+      const double  w      = cellRule.weights[q] * vol;
+      double        x[3], t[3], grad[3], lq = 0, Rq[3], Rhq[3];
+      point(lambda, x);
+      signorini::LiftValue(dim, tau, lambda, t);
+      for (int j = 0; j <= dim; ++j) lq += lf[j] * lambda[j];
+      e.Grad(x, grad);
+      for (int a = 0; a < dim; ++a) {
+        Rq[a] = -t[a], Rhq[a] = -t[a];
+        for (int j = 0; j <= dim; ++j) Rq[a] += D[j * dim + a] * lambda[j], Rhq[a] += Dh[j * dim + a] * lambda[j];
+      }
+      rhs += w * lq * e(x), scale += w * std::abs(lq * e(x));
+      for (int a = 0; a < dim; ++a) lhs += w * t[a] * grad[a], q2 += w * Rq[a] * Rq[a], qh2 += w * Rhq[a] * Rhq[a];
+      for (int c = 0; c < numCycles; ++c) {
+        double C[3];
+        cycle(c, lambda, C);
+        for (int a = 0; a < dim; ++a) dC[c] += w * (Rq[a] + Rhq[a]) * C[a], dScale[c] += w * (std::abs(Rq[a]) + std::abs(Rhq[a])) * std::abs(C[a]);
+      }
+    }
+    worstGreen = std::max(worstGreen, std::abs(lhs - rhs) / scale);
+    worstNorm  = std::max({worstNorm, std::abs(r2 - q2) / q2, std::abs(rh2 - qh2) / qh2});
+    for (int c = 0; c < numCycles; ++c) worstStationary = std::max(worstStationary, std::abs(dC[c]) / dScale[c]);
+  }
+  ck.Check(worstGreen < 1e-12, tag + " LiftCell: int_T tau . grad e = int_T l_f e + sum_F int_F l_F e (40 cells, " + std::to_string(faces) + " Neumann faces, random quadratic e)", "largest relative difference %.3g", worstGreen);
+  ck.Check(worstNorm < 1e-12, tag + " LiftCell: ||D - tau||^2 and ||Dh - tau||^2 equal their quadrature", "largest relative difference %.3g", worstNorm);
+  ck.Check(worstStationary < 1e-12, tag + " LiftCell: the free part minimises ||D - tau||^2 + ||Dh - tau||^2 (stationary in every cycle field)", "largest relative derivative %.3g", worstStationary);
 }
 
 } // namespace
@@ -319,6 +434,7 @@ int main(int argc, char **argv)
     TestExact(ck, dim, rule);
     TestRandom(ck, dim, rule);
     TestLift(ck, dim);
+    TestLiftCell(ck, dim);
   }
   const int rc = ck.Finish();
   ierr         = PetscFinalize();

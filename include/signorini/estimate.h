@@ -15,6 +15,9 @@
 // flux's own error S = ||kappa^{-1/2}(kappa grad u - sigma)|| together, E^2 + S^2 <= F^2 + 2 gamma + 2 osc E,
 // with |||u - u_h||| <= min(E + N, S + ||kappa^{-1/2}(kappa grad_h u_h - sigma)||): both avoid counting the
 // distance of v from u_h twice (for CR on the manufactured 3D scene, index 3.09 -> 2.11 at 4x4x4).
+// Where the oscillation weighs in eta, the same bounds are taken a second time with sigma + tau, tau a
+// cell-local field that carries the affine parts of f and g (datalift.h), so that the oscillation is that
+// of f - Pi_1 f and g - Pi_1 g; eta is the smaller.
 // The bound is guaranteed for kappa constant per cell, u_D and psi affine on each boundary face, and an
 // exact discrete solution (the flux is equilibrated up to the solver's residual).
 //
