@@ -270,8 +270,8 @@ void LiftedCellTermsD(const Space &space, const Problem &problem, const System &
 {
   constexpr PetscInt     nb   = dim + 1;
   const Quadrature      &rule = sys.oscCellRule;
-  const bool             fvar = !problem.f->IsConstant();
-  std::vector<PetscReal> x(rule.Size() * dim), fx(rule.Size());
+  const bool             fvar = !problem.f->IsConstant(), fromLoads = !sys.cellLoads.empty() && sys.cellRule.degree >= System::kOscillationDegree;
+  std::vector<PetscReal> x(rule.Size() * dim), fx(rule.Size()), work;
   FaceLift               lifts[4];
   for (PetscInt c = 0; c < space.NumCells(); ++c) {
     const Space::Coords X = space.XD<dim>(c);
@@ -292,13 +292,26 @@ void LiftedCellTermsD(const Space &space, const Problem &problem, const System &
         s0 /= dim * g.volume;
         D[m * dim + d] = kappa * gv[d] - s0, Dh[m * dim + d] = kappa * gu[d] - s0;
       }
-    // The load's affine part l (mean zero) and ||f - Pi_1 f||^2, by the oscillation's rule.
-    PetscReal lf[nb] = {}, oscf = 0;
-    if (fvar) {
+    // The load's affine part l (mean zero) and ||f - Pi_1 f||^2 by the oscillation's rule: from the kept
+    // load where it is that rule (moments int f lambda_k, and ||f - Pi_0 f||^2 through the first pass's
+    // oscillation; Pythagoras holds for the rule's inner product, which integrates affine products
+    // exactly), else from f evaluated again.
+    PetscReal lf[nb] = {}, mean = 0, mu[nb] = {}, rest2 = 0;
+    if (fvar && fromLoads) {
+      CellLoad load;
+      GetCellLoad(space, problem, sys, c, X, g, work, load, error);
+      for (PetscInt k = 0; k < nb; ++k) mu[k] = load.moment[k] / g.volume, mean += mu[k];
+      for (PetscInt k = 0; k < nb; ++k) lf[k] = nb * (nb + 1) * mu[k] - (nb + 1) * mean;
+      if (load.oscillation > 0) {
+        const PetscReal C = PoincareConstant(dim, X.x), dev2 = load.oscillation * load.oscillation * kappa / (C * C * g.volume);
+        PetscReal       l2 = 0; // ||Pi_1 f - Pi_0 f||^2 / |T| = sum_k l_k^2 / ((d + 1)(d + 2)), as sum_k l_k = 0
+        for (PetscInt k = 0; k < nb; ++k) l2 += lf[k] * lf[k];
+        rest2 = std::max(dev2 - l2 / (nb * (nb + 1)), (PetscReal)0);
+      }
+    } else if (fvar) {
       for (PetscInt q = 0; q < rule.Size(); ++q) SimplexPoint(dim, X.x, rule.Point(q), &x[q * dim]);
       problem.f->SetCellSet(space.CellSet(c));
       problem.f->EvalBatch(rule.Size(), x.data(), dim, nullptr, fx.data(), error);
-      PetscReal mean = 0, mu[nb] = {}, rest2 = 0;
       for (PetscInt q = 0; q < rule.Size(); ++q) {
         mean += rule.weights[q] * fx[q];
         for (PetscInt k = 0; k < nb; ++k) mu[k] += rule.weights[q] * fx[q] * rule.Point(q)[k];
@@ -309,8 +322,8 @@ void LiftedCellTermsD(const Space &space, const Problem &problem, const System &
         for (PetscInt k = 0; k < nb; ++k) p1 += lf[k] * rule.Point(q)[k];
         rest2 += rule.weights[q] * (fx[q] - p1) * (fx[q] - p1);
       }
-      if (rest2 > 0) oscf = PoincareConstant(dim, X.x) * std::sqrt(rest2 * g.volume / kappa);
     }
+    const PetscReal oscf = rest2 > 0 ? PoincareConstant(dim, X.x) * std::sqrt(rest2 * g.volume / kappa) : 0;
     PetscInt  nfaces = 0;
     PetscReal oscg   = 0;
     for (PetscInt i = nf.start[c]; i < nf.start[c + 1]; ++i) lifts[nfaces++] = nf.faces[i].lift, oscg += nf.faces[i].rest;

@@ -65,10 +65,10 @@ struct Reconstruction {
 struct Estimate {
   bool      computed = false;
   PetscReal eta = 0;           // the bound of |||u - u_h|||
-  PetscReal flux = 0;          // F
+  PetscReal flux = 0;          // F (of sigma + tau where the lifted bound is eta)
   PetscReal nonconformity = 0; // N
   PetscReal contact = 0;       // gamma
-  PetscReal oscillation = 0;   // osc (f and g)
+  PetscReal oscillation = 0;   // osc (f and g; of f - Pi_1 f and g - Pi_1 g where the lifted bound is eta)
   std::vector<PetscReal> cellEta2; // per local cell: its indicator squared (flux, nonconformity, oscillation and contact parts of the cell)
   double    seconds = 0;       // max over ranks
 };
