@@ -49,19 +49,6 @@ struct FaceOf {
   }
 };
 
-// Adds the Neumann oscillation of each face of Gamma_N to its cell's, the smaller of two bounds of
-// sup_e (g - Pi_0 g, e)_F / |||e|||_T (Pi_0 g the mean of g by the oscillation's face rule, assembly.h):
-//  - trace: (g - Pi_0 g, e)_F = (g - Pi_0 g, e - e_T)_F <= ||g - Pi_0 g||_F C_F ||grad e||_T with
-//      C_F^2 = |F| C_T / |T| (C_T + 2 l_F / d),
-//    from int_F w = |F|/(d|T|) int_T (d w + (x - a_F) . grad w) (a_F the vertex opposite F) with
-//    w = (e - e_T)^2, Poincare's ||e - e_T||_T <= C_T ||grad e||_T (PoincareConstant, at most h_T / pi), and
-//    |x - a_F| <= l_F on T, l_F the longest edge at a_F (<= h_T);
-//  - lifting: with Pi_1 g the L2 projection onto the affine functions on F, l = Pi_1 g - Pi_0 g (mean zero,
-//    l_j at F's vertices X_j) is the normal trace on F of tau = sum_j l_j lambda_j (X_j - a_F) / h_F
-//    (h_F = d |T| / |F| the height; on the other faces X_j - a_F is tangent or lambda_j = 0), affine with
-//    div tau = sum_j l_j / h_F = 0, so (l, e)_F = int_T tau . grad e <= ||kappa^{-1/2} tau||_T |||e|||_T,
-//    and the rest (g - Pi_1 g, e - e_T)_F by the trace bound. On faces where g is about affine the lifting
-//    is 0.53 to 0.71 of the trace bound (Kuhn tetrahedra).
 // One Neumann face's data: l = Pi_1 g - Pi_0 g at the cell's vertices (FaceLift), and the bounds: trace
 // (of g - Pi_0 g), rest (the trace bound of g - Pi_1 g) and lifted (||kappa^{-1/2} tau|| + rest).
 struct NeumannFace {
@@ -107,6 +94,19 @@ NeumannFace NeumannFaceData(const Space &space, const Problem &problem, const Sy
   return nf;
 }
 
+// Adds the Neumann oscillation of each face of Gamma_N to its cell's, the smaller of two bounds of
+// sup_e (g - Pi_0 g, e)_F / |||e|||_T (Pi_0 g the mean of g by the oscillation's face rule, assembly.h):
+//  - trace: (g - Pi_0 g, e)_F = (g - Pi_0 g, e - e_T)_F <= ||g - Pi_0 g||_F C_F ||grad e||_T with
+//      C_F^2 = |F| C_T / |T| (C_T + 2 l_F / d),
+//    from int_F w = |F|/(d|T|) int_T (d w + (x - a_F) . grad w) (a_F the vertex opposite F) with
+//    w = (e - e_T)^2, Poincare's ||e - e_T||_T <= C_T ||grad e||_T (PoincareConstant, at most h_T / pi), and
+//    |x - a_F| <= l_F on T, l_F the longest edge at a_F (<= h_T);
+//  - lifting: with Pi_1 g the L2 projection onto the affine functions on F, l = Pi_1 g - Pi_0 g (mean zero,
+//    l_j at F's vertices X_j) is the normal trace on F of tau = sum_j l_j lambda_j (X_j - a_F) / h_F
+//    (h_F = d |T| / |F| the height; on the other faces X_j - a_F is tangent or lambda_j = 0), affine with
+//    div tau = sum_j l_j / h_F = 0, so (l, e)_F = int_T tau . grad e <= ||kappa^{-1/2} tau||_T |||e|||_T,
+//    and the rest (g - Pi_1 g, e - e_T)_F by the trace bound. On faces where g is about affine the lifting
+//    is 0.53 to 0.71 of the trace bound (Kuhn tetrahedra).
 void AddNeumannOscillation(const Space &space, const Problem &problem, const System &sys, std::vector<PetscReal> &osc, std::string &error)
 {
   if (!problem.HasNeumann() || problem.g->IsConstant()) return;
@@ -433,8 +433,8 @@ PetscErrorCode EstimateFromReconstruction(const Space &space, const Problem &pro
   // Where the oscillation weighs in eta (coarse meshes, rough data), the data's affine parts lifted into
   // the flux (datalift.h) give a second guaranteed bound, about the bound without oscillation (the
   // linear term gone, the lifted fields in F^2 instead); eta is the smaller of the two. Where the
-  // oscillation changes eta by less than kLiftGain, the pass over the cells (with f evaluated again, a few
-  // times the cost of the first pass) is left out.
+  // oscillation changes eta by less than kLiftGain, that second pass over the cells (about as costly as the
+  // whole first one for P1 in 2D) is left out.
   const PetscReal withoutOsc = Bound({e.nonconformity, e.flux, std::sqrt(sums[kFh2]), 0, e.flux, std::sqrt(sums[kFh2]), e.contact});
   if (e.eta - withoutOsc > kLiftGain * e.eta) {
     NeumannFaces           nf;
