@@ -49,6 +49,33 @@ struct FaceOf {
   }
 };
 
+// The affine part of values v_q at the points of a rule on a simplex of n vertices (a cell, or a face of
+// it), given by their barycentric coordinates in the cell (lambdas, nb a point; skip: the cell's vertex off
+// the face, or -1): l = Pi_1 v - Pi_0 v at the vertices (the mass matrix (1 + delta_jk) / (n (n + 1)) of
+// the normalised rule inverted, less the mean; 0 at skip), and the rule's means of (v - Pi_0 v)^2 and
+// (v - Pi_1 v)^2.
+struct AffinePart {
+  PetscReal l[4] = {0, 0, 0, 0}, dev2 = 0, rest2 = 0;
+};
+AffinePart ProjectAffine(PetscInt n, PetscInt nb, PetscInt skip, const Quadrature &rule, const PetscReal *values, const PetscReal *lambdas)
+{
+  AffinePart a;
+  PetscReal  mean = 0, mu[4] = {0, 0, 0, 0}; // mu_k: the mean of v lambda_k
+  for (PetscInt q = 0; q < rule.Size(); ++q) {
+    mean += rule.weights[q] * values[q];
+    for (PetscInt k = 0; k < nb; ++k) mu[k] += rule.weights[q] * values[q] * lambdas[q * nb + k];
+  }
+  for (PetscInt k = 0; k < nb; ++k)
+    if (k != skip) a.l[k] = n * (n + 1) * mu[k] - (n + 1) * mean;
+  for (PetscInt q = 0; q < rule.Size(); ++q) {
+    PetscReal p1 = mean;
+    for (PetscInt k = 0; k < nb; ++k) p1 += a.l[k] * lambdas[q * nb + k];
+    a.dev2 += rule.weights[q] * (values[q] - mean) * (values[q] - mean);
+    a.rest2 += rule.weights[q] * (values[q] - p1) * (values[q] - p1);
+  }
+  return a;
+}
+
 // One Neumann face's data: l = Pi_1 g - Pi_0 g at the cell's vertices (FaceLift), and the bounds: trace
 // (of g - Pi_0 g), rest (the trace bound of g - Pi_1 g) and lifted (||kappa^{-1/2} tau|| + rest).
 struct NeumannFace {
@@ -64,33 +91,20 @@ NeumannFace NeumannFaceData(const Space &space, const Problem &problem, const Sy
   PetscReal         x[3];
   values.resize(rule.Size()), lambdas.resize(rule.Size() * nb);
   problem.g->SetCellSet(space.CellSet(bf.cell));
-  PetscReal mean = 0, dev2 = 0, mu[4] = {0, 0, 0, 0}; // mu_k: the mean of g lambda_k over F
   for (PetscInt q = 0; q < rule.Size(); ++q) {
     PetscReal *lambda = &lambdas[q * nb];
     space.FaceToCell(bf, rule.Point(q), lambda);
     space.Point(bf.cell, lambda, x);
     values[q] = problem.g->Scalar(x, dim, error);
-    mean += rule.weights[q] * values[q];
-    for (PetscInt k = 0; k < nb; ++k) mu[k] += rule.weights[q] * values[q] * lambda[k];
   }
-  // l = Pi_1 g - Pi_0 g = sum_k l_k lambda_k on F: the face's mass matrix |F| (1 + delta_jk) / (d (d + 1))
-  // inverted, less the mean.
-  NeumannFace nf;
+  const AffinePart a = ProjectAffine(dim, nb, bf.opposite, rule, values.data(), lambdas.data());
+  NeumannFace      nf;
   nf.lift.opposite = bf.opposite;
-  PetscReal *l = nf.lift.l, rest2 = 0;
-  std::fill(l, l + 4, 0.0);
-  for (PetscInt k = 0; k < nb; ++k)
-    if (k != bf.opposite) l[k] = dim * (dim + 1) * mu[k] - (dim + 1) * mean;
-  for (PetscInt q = 0; q < rule.Size(); ++q) {
-    PetscReal p1 = mean;
-    for (PetscInt k = 0; k < nb; ++k) p1 += l[k] * lambdas[q * nb + k];
-    dev2 += rule.weights[q] * (values[q] - mean) * (values[q] - mean);
-    rest2 += rule.weights[q] * (values[q] - p1) * (values[q] - p1);
-  }
+  std::copy(a.l, a.l + 4, nf.lift.l);
   const PetscReal CP = face.poincare, C2 = face.area * CP / face.g.volume * (CP + 2 * face.reach / dim), kappa = sys.Kappa(bf.cell);
-  nf.trace  = std::sqrt(C2 * dev2 * face.area / kappa);
-  nf.rest   = std::sqrt(C2 * rest2 * face.area / kappa);
-  nf.lifted = (NeumannLiftNorm(dim, face.X, face.g, bf.opposite, l) + std::sqrt(C2 * rest2 * face.area)) / std::sqrt(kappa);
+  nf.trace  = std::sqrt(C2 * a.dev2 * face.area / kappa);
+  nf.rest   = std::sqrt(C2 * a.rest2 * face.area / kappa);
+  nf.lifted = (NeumannLiftNorm(dim, face.X, face.g, bf.opposite, nf.lift.l) + std::sqrt(C2 * a.rest2 * face.area)) / std::sqrt(kappa);
   return nf;
 }
 
@@ -299,15 +313,17 @@ void LiftedCellTermsD(const Space &space, const Problem &problem, const System &
     // load where it is that rule (moments int f lambda_k, and ||f - Pi_0 f||^2 through the first pass's
     // oscillation; Pythagoras holds for the rule's inner product, which integrates affine products
     // exactly), else from f evaluated again.
-    PetscReal lf[nb] = {}, mean = 0, mu[nb] = {}, rest2 = 0;
+    PetscReal       lf[nb] = {}, rest2 = 0;
+    const PetscReal C = fvar ? PoincareConstant(dim, X.x) : 0;
     if (fvar && fromLoads) {
-      CellLoad load;
+      CellLoad  load;
+      PetscReal mean = 0, mu[nb];
       GetCellLoad(space, problem, sys, c, X, g, work, load, error);
       for (PetscInt k = 0; k < nb; ++k) mu[k] = load.moment[k] / g.volume, mean += mu[k];
       for (PetscInt k = 0; k < nb; ++k) lf[k] = nb * (nb + 1) * mu[k] - (nb + 1) * mean;
       if (load.oscillation > 0) {
-        const PetscReal C = PoincareConstant(dim, X.x), dev2 = load.oscillation * load.oscillation * kappa / (C * C * g.volume);
-        PetscReal       l2 = 0; // ||Pi_1 f - Pi_0 f||^2 / |T| = sum_k l_k^2 / ((d + 1)(d + 2)), as sum_k l_k = 0
+        const PetscReal dev2 = load.oscillation * load.oscillation * kappa / (C * C * g.volume);
+        PetscReal       l2   = 0; // ||Pi_1 f - Pi_0 f||^2 / |T| = sum_k l_k^2 / ((d + 1)(d + 2)), as sum_k l_k = 0
         for (PetscInt k = 0; k < nb; ++k) l2 += lf[k] * lf[k];
         rest2 = std::max(dev2 - l2 / (nb * (nb + 1)), (PetscReal)0);
       }
@@ -315,18 +331,11 @@ void LiftedCellTermsD(const Space &space, const Problem &problem, const System &
       for (PetscInt q = 0; q < rule.Size(); ++q) SimplexPoint(dim, X.x, rule.Point(q), &x[q * dim]);
       problem.f->SetCellSet(space.CellSet(c));
       problem.f->EvalBatch(rule.Size(), x.data(), dim, nullptr, fx.data(), error);
-      for (PetscInt q = 0; q < rule.Size(); ++q) {
-        mean += rule.weights[q] * fx[q];
-        for (PetscInt k = 0; k < nb; ++k) mu[k] += rule.weights[q] * fx[q] * rule.Point(q)[k];
-      }
-      for (PetscInt k = 0; k < nb; ++k) lf[k] = nb * (nb + 1) * mu[k] - (nb + 1) * mean;
-      for (PetscInt q = 0; q < rule.Size(); ++q) {
-        PetscReal p1 = mean;
-        for (PetscInt k = 0; k < nb; ++k) p1 += lf[k] * rule.Point(q)[k];
-        rest2 += rule.weights[q] * (fx[q] - p1) * (fx[q] - p1);
-      }
+      const AffinePart f = ProjectAffine(nb, nb, -1, rule, fx.data(), rule.Point(0));
+      std::copy(f.l, f.l + nb, lf);
+      rest2 = f.rest2;
     }
-    const PetscReal oscf = rest2 > 0 ? PoincareConstant(dim, X.x) * std::sqrt(rest2 * g.volume / kappa) : 0;
+    const PetscReal oscf = rest2 > 0 ? C * std::sqrt(rest2 * g.volume / kappa) : 0;
     PetscInt  nfaces = 0;
     PetscReal oscg   = 0;
     for (PetscInt i = nf.start[c]; i < nf.start[c + 1]; ++i) lifts[nfaces++] = nf.faces[i].lift, oscg += nf.faces[i].rest;
