@@ -30,7 +30,8 @@ guaranteed bound broken) is a FAIL, an index above 3 reads "index > 3" (reliable
     DOFs, <= -0.45 or FAIL; and the run time the adaptive refinement takes to reach the energy error of a
     uniform run (the study's finest level; with --full, -refine 8: 1.05 M DOFs for P1, 3.15 M for CR) against
     that run's time (ratio of the runs' own totals, each the fastest of three alternate runs, target <= 0.1;
-    "above target" otherwise, which is not a failure). Both errors are measured against solutions adaptively refined further from the runs' own meshes.
+    "above target" otherwise, which is not a failure). Both errors are measured against solutions adaptively
+    refined further from the runs' own meshes.
 Where the default solver fails, the row of the preset that fixes it (petsc-options/solvers/high-contrast)
 follows, and the default row's status reads "fail -> PRESET" (before and after); it counts as a
 failure only if the preset fails too. The exit status is 1 if any row has status FAIL.
@@ -552,20 +553,22 @@ def compare_times(rep, name, uniform_refine, element):
     else:
         require(row, False, "too few adaptive steps with a reference error to fit a slope")
     by_eta = next((r for r in steps if r["eta"] <= error), None)
-    t = u["time"]["total"]
-    conservative = ("by eta < E: %d DOFs in %.3f s, ratio %.3f" % (by_eta["dofs"], by_eta["run_seconds"], by_eta["run_seconds"] / t)
-                    if by_eta else "eta not below E within %d DOFs" % u["dofs"])
-    row["check"] = "uniform %d DOFs, error %.3e (vs %d adapted DOFs, eta %.2e) in %.3f s; " % (
-        u["dofs"], error, last["dofs"], last["eta"], t)
+
+    def summary(t):  # the uniform run and the conservative comparison, with the uniform run's time t
+        conservative = ("by eta < E: %d DOFs in %.3f s, ratio %.3f" % (by_eta["dofs"], by_eta["run_seconds"], by_eta["run_seconds"] / t)
+                        if by_eta else "eta not below E within %d DOFs" % u["dofs"])
+        return "uniform %d DOFs, error %.3e (vs %d adapted DOFs, eta %.2e) in %.3f s; " % (
+            u["dofs"], error, last["dofs"], last["eta"], t), conservative
     if reached is None:
         require(row, False, "the adaptive error does not reach %.3e within %d DOFs" % (error, u["dofs"]))
-        row["check"] += conservative
+        row["check"] = "".join(summary(u["time"]["total"]))
         return rep.add(row)
     step = steps.index(reached)
-    tu, ta = best_times(rep, row, base + ["-refine", str(uniform_refine)], u, t,
-                        base + ["-adapt_steps", str(step), "-adapt_max_dofs", str(u["dofs"])], reached)
+    tu, ta = best_times(rep, row, base + ["-refine", str(uniform_refine)], u, u["time"]["total"],
+                        base + ["-adapt_steps", str(max(step, 1)), "-adapt_max_dofs", str(u["dofs"])], step, reached)
     row["time_ratio"] = ta / tu
-    row["check"] += ("adaptive %d DOFs, error %.3e (vs adaptive reference) in %.3f s: time ratio %.3f, target <= %g (%s)" % (
+    head, conservative = summary(tu)
+    row["check"] = head + ("adaptive %d DOFs, error %.3e (vs adaptive reference) in %.3f s: time ratio %.3f, target <= %g (%s)" % (
         reached["dofs"], reached["error_reference"], ta, row["time_ratio"], TIME_RATIO, conservative))
     row["check"] += "; fastest of %d alternate runs each, uniform %s s, adaptive %s s" % (
         TIME_REPEATS, "/".join("%.3f" % x for x in row["uniform_seconds"]), "/".join("%.3f" % x for x in row["adaptive_seconds"]))
@@ -582,9 +585,9 @@ def compare_times(rep, name, uniform_refine, element):
 TIME_REPEATS = 3
 
 
-def best_times(rep, row, uniform_args, u, t, adaptive_args, reached):
+def best_times(rep, row, uniform_args, u, t, adaptive_args, step, reached):
     """The fastest of TIME_REPEATS timings of the uniform run (first: its summary u, total t) and of the
-    adaptive run up to the step `reached` (first: that row), the others by runs of the same commands
+    adaptive run up to its step `step` (first: that step's row `reached`), the others by runs of the same commands
     alternately, without their references (which come after the timed part). Each repeat must give the
     same DOFs. Records both lists in row; returns (uniform, adaptive) seconds."""
     row["uniform_seconds"], row["adaptive_seconds"] = [t], [reached["run_seconds"]]
@@ -597,7 +600,8 @@ def best_times(rep, row, uniform_args, u, t, adaptive_args, reached):
         else:
             require(row, False, again["message"] or "a repeat of the uniform run gave %s DOFs" % (s and s["dofs"]))
         again = rep.run.solve(adaptive_args, output=False)
-        last = (again["summary"] or {}).get("adapt", [None])[-1] if again["rc"] == 0 else None
+        steps = ((again["summary"] or {}).get("adapt") or []) if again["rc"] == 0 else []
+        last = steps[step] if len(steps) > step else None
         if last and last["dofs"] == reached["dofs"]:
             row["adaptive_seconds"].append(last["run_seconds"])
         else:
