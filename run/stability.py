@@ -509,11 +509,11 @@ def compare_times(rep, name, uniform_refine, element):
     UNIFORM_REFERENCE_STEPS, REFERENCE_STEPS), and slightly below the true ones. The adaptive time is the
     step's "run_seconds" (from the first mesh to that step's estimate); the uniform time is that run's own
     total (mesh to estimate). Neither includes process start-up; each is the fastest of TIME_REPEATS runs
-    (best_times). Target: ratio <= TIME_RATIO ("above target"
-    otherwise, not a failure). The conservative comparison (the first adaptive step whose eta is below the
-    uniform error) is in the check column too."""
+    (best_times). Target: ratio <= TIME_RATIO ("above target" otherwise, not a failure). The conservative
+    comparison (the first adaptive step whose eta is below the uniform error) is in the check column too."""
     base = scene(name) + ["-space", element]
-    uniform = rep.run.solve(base + ["-refine", str(uniform_refine)], output=False)
+    uniform_args = base + ["-refine", str(uniform_refine)]
+    uniform = rep.run.solve(uniform_args, output=False)
     row = {"scene": name, "variant": "time vs uniform -refine %d" % uniform_refine, "element": element,
            "solver": "default", "seconds": uniform["seconds"], "status": "ok", "check": "", "notes": []}
     u = uniform["summary"]
@@ -553,22 +553,22 @@ def compare_times(rep, name, uniform_refine, element):
     else:
         require(row, False, "too few adaptive steps with a reference error to fit a slope")
     by_eta = next((r for r in steps if r["eta"] <= error), None)
-
-    def summary(t):  # the uniform run and the conservative comparison, with the uniform run's time t
-        conservative = ("by eta < E: %d DOFs in %.3f s, ratio %.3f" % (by_eta["dofs"], by_eta["run_seconds"], by_eta["run_seconds"] / t)
-                        if by_eta else "eta not below E within %d DOFs" % u["dofs"])
-        return "uniform %d DOFs, error %.3e (vs %d adapted DOFs, eta %.2e) in %.3f s; " % (
-            u["dofs"], error, last["dofs"], last["eta"], t), conservative
     if reached is None:
         require(row, False, "the adaptive error does not reach %.3e within %d DOFs" % (error, u["dofs"]))
-        row["check"] = "".join(summary(u["time"]["total"]))
+        tu = u["time"]["total"]
+    else:
+        step = steps.index(reached)
+        tu, ta = best_times(rep, row, uniform_args, u, base + ["-adapt_steps", str(max(step, 1)), "-adapt_max_dofs", str(u["dofs"])],
+                            step, reached)
+        row["time_ratio"] = ta / tu
+    conservative = ("by eta < E: %d DOFs in %.3f s, ratio %.3f" % (by_eta["dofs"], by_eta["run_seconds"], by_eta["run_seconds"] / tu)
+                    if by_eta else "eta not below E within %d DOFs" % u["dofs"])
+    row["check"] = "uniform %d DOFs, error %.3e (vs %d adapted DOFs, eta %.2e) in %.3f s; " % (
+        u["dofs"], error, last["dofs"], last["eta"], tu)
+    if reached is None:
+        row["check"] += conservative
         return rep.add(row)
-    step = steps.index(reached)
-    tu, ta = best_times(rep, row, base + ["-refine", str(uniform_refine)], u, u["time"]["total"],
-                        base + ["-adapt_steps", str(max(step, 1)), "-adapt_max_dofs", str(u["dofs"])], step, reached)
-    row["time_ratio"] = ta / tu
-    head, conservative = summary(tu)
-    row["check"] = head + ("adaptive %d DOFs, error %.3e (vs adaptive reference) in %.3f s: time ratio %.3f, target <= %g (%s)" % (
+    row["check"] += ("adaptive %d DOFs, error %.3e (vs adaptive reference) in %.3f s: time ratio %.3f, target <= %g (%s)" % (
         reached["dofs"], reached["error_reference"], ta, row["time_ratio"], TIME_RATIO, conservative))
     row["check"] += "; fastest of %d alternate runs each, uniform %s s, adaptive %s s" % (
         TIME_REPEATS, "/".join("%.3f" % x for x in row["uniform_seconds"]), "/".join("%.3f" % x for x in row["adaptive_seconds"]))
@@ -585,29 +585,30 @@ def compare_times(rep, name, uniform_refine, element):
 TIME_REPEATS = 3
 
 
-def best_times(rep, row, uniform_args, u, t, adaptive_args, step, reached):
-    """The fastest of TIME_REPEATS timings of the uniform run (first: its summary u, total t) and of the
-    adaptive run up to its step `step` (first: that step's row `reached`), the others by runs of the same commands
+def best_times(rep, row, uniform_args, u, adaptive_args, step, reached):
+    """The fastest of TIME_REPEATS timings of the uniform run (first: its summary u) and of the adaptive run
+    up to its step `step` (first: that step's row `reached`), the others by runs of the same commands
     alternately, without their references (which come after the timed part). Each repeat must give the
     same DOFs. Records both lists in row; returns (uniform, adaptive) seconds."""
-    row["uniform_seconds"], row["adaptive_seconds"] = [t], [reached["run_seconds"]]
+    def uniform_time(s):
+        return s["time"]["total"] if s["dofs"] == u["dofs"] else None
+
+    def adaptive_time(s):
+        steps = s.get("adapt") or []
+        return steps[step]["run_seconds"] if len(steps) > step and steps[step]["dofs"] == reached["dofs"] else None
+    sides = [("uniform", uniform_args, uniform_time, [u["time"]["total"]]),
+             ("adaptive", adaptive_args, adaptive_time, [reached["run_seconds"]])]
     for _ in range(TIME_REPEATS - 1):
-        again = rep.run.solve(uniform_args, output=False)
-        row["seconds"] += again["seconds"]
-        s = again["summary"]
-        if again["rc"] == 0 and s and s["dofs"] == u["dofs"]:
-            row["uniform_seconds"].append(s["time"]["total"])
-        else:
-            require(row, False, again["message"] or "a repeat of the uniform run gave %s DOFs" % (s and s["dofs"]))
-        again = rep.run.solve(adaptive_args, output=False)
-        steps = ((again["summary"] or {}).get("adapt") or []) if again["rc"] == 0 else []
-        last = steps[step] if len(steps) > step else None
-        if last and last["dofs"] == reached["dofs"]:
-            row["adaptive_seconds"].append(last["run_seconds"])
-        else:
-            require(row, False, again["message"] or "a repeat of the adaptive run ended at %s DOFs" % (last and last["dofs"]))
-        row["seconds"] += again["seconds"]
-    return min(row["uniform_seconds"]), min(row["adaptive_seconds"])
+        for what, args, time_of, times in sides:
+            again = rep.run.solve(args, output=False)
+            row["seconds"] += again["seconds"]
+            t = time_of(again["summary"]) if again["rc"] == 0 and again["summary"] else None
+            if t is None:
+                require(row, False, again["message"] or "a repeat of the %s run ended on another mesh" % what)
+            else:
+                times.append(t)
+    row["uniform_seconds"], row["adaptive_seconds"] = sides[0][3], sides[1][3]
+    return min(sides[0][3]), min(sides[1][3])
 
 
 def available_memory():
