@@ -7,9 +7,13 @@
 namespace signorini {
 
 namespace {
-// Values within this relative distance below the threshold count as equal to it.
-constexpr PetscReal kTieSlack = 1e-6;
-constexpr PetscReal kInf      = std::numeric_limits<PetscReal>::infinity();
+// The width of the bins of the cut (see CutInGap), relative: far above the differences that the solver's
+// tolerance leaves between the indicators of runs on other rank counts (about 1e-8 relative), far below
+// the spread of the indicators that Doerfler marking tells apart.
+constexpr PetscReal kGap = 1e-6;
+// Bins below the threshold examined per global reduction (CutInGap).
+constexpr int       kBinsPerPass = 1024;
+constexpr PetscReal kInf         = std::numeric_limits<PetscReal>::infinity();
 
 // The global min and max of a set of values ({+inf, -inf} if empty), and the min and -max of this rank's
 // values folded into r (r[0] = min, r[1] = -max, so that one MPI_MIN reduces both).
@@ -39,6 +43,40 @@ PetscErrorCode Split(MPI_Comm comm, PetscReal *w, size_t n, PetscReal mid, size_
   *below = {r[0], -r[1]}, *above = {r[2], -r[3]};
   PetscFunctionReturn(0);
 }
+// The cut: every value >= it is marked. Not the threshold t itself: indicators that are equal in exact
+// arithmetic, or packed closer together than the solver's tolerance (a structured mesh has thousands
+// within 1e-9 of each other), differ from run to run on other rank counts, and a cut among them marks other
+// cells. So the cut lies in the middle of the first empty bin below t, on a fixed logarithmic grid of bins
+// of relative width kGap: its nearest values lie at least kGap / 2 away on either side, and it moves
+// only where a value lies within the solver's tolerance of that bin's edges. It marks every value >= t
+// (Doerfler's set) and, where values cluster below t, the cluster down to its first gap of 2 kGap or so.
+// Each pass examines kBinsPerPass bins with one reduction and leaves the values below them in w[0, n).
+PetscErrorCode CutInGap(MPI_Comm comm, PetscReal *w, size_t n, PetscReal t, PetscReal *cut)
+{
+  const PetscReal     width = std::log1p(kGap);
+  const auto          bin   = [width](PetscReal x) { return (PetscInt64)std::floor(std::log(x) / width); };
+  std::vector<PetscInt> count(kBinsPerPass);
+  PetscFunctionBeginUser;
+  n = (size_t)(std::partition(w, w + n, [t](PetscReal x) { return x < t; }) - w);
+  for (PetscInt64 top = bin(t);; top -= kBinsPerPass) { // this pass: the bins top - kBinsPerPass .. top - 1
+    const PetscInt64 low = top - kBinsPerPass;
+    std::fill(count.begin(), count.end(), 0);
+    // below the pass's bins: the logarithm only near their lower edge, where its round-off matters
+    const PetscReal edge  = std::exp((PetscReal)low * width);
+    PetscReal      *below = std::partition(w, w + n, [&](PetscReal x) { return x < edge * (1 - 1e-9) || (x < edge * (1 + 1e-9) && bin(x) < low); });
+    for (PetscReal *x = below; x < w + n; ++x) {
+      const PetscInt64 b = bin(*x);
+      if (b < top) ++count[b - low]; // values of t's own bin lie above the cut anyway
+    }
+    n = (size_t)(below - w);
+    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, count.data(), kBinsPerPass, MPIU_INT, MPI_SUM, comm));
+    for (int k = kBinsPerPass - 1; k >= 0; --k)
+      if (count[k] == 0) {
+        *cut = std::exp(((PetscReal)(low + k) + 0.5) * width);
+        PetscFunctionReturn(0);
+      }
+  }
+}
 } // namespace
 
 PetscErrorCode MarkDoerfler(MPI_Comm comm, const std::vector<PetscReal> &eta2, PetscReal theta, std::vector<char> &marked, PetscInt *count)
@@ -63,15 +101,15 @@ PetscErrorCode MarkDoerfler(MPI_Comm comm, const std::vector<PetscReal> &eta2, P
     const PetscReal target = theta * total;
     // S(x) = sum of the values >= x falls as x grows; S(lo) >= target > S(hi) throughout, the values in
     // [lo, hi) are w[first, first + n) and sumHi = S(hi). t is the smallest value in [lo, hi) once all of
-    // them lie within kTieSlack of each other: every value >= t must then be marked, and marking it
-    // reaches the target. Each step's pass also finds the range of the values in either half.
+    // them lie within kGap of each other: every value >= t must then be marked, and marking it reaches
+    // the target. Each step's pass also finds the range of the values in either half.
     PetscReal sumHi = 0;
     size_t    first = 0, n = w.size();
     Range     in = all; // the values in [lo, hi): lo = min, hi = inf
     // The largest values alone may be enough (lo = max); if not, the search starts from all of them.
     PetscCall(Split(comm, w.data(), n, all.max, &nBelow, &s, &below, &above));
     if (s >= target) first = nBelow, n -= nBelow, in = above;
-    while (in.max > in.min * (1 + kTieSlack)) {
+    while (in.max > in.min * (1 + kGap)) {
       // Bisect geometrically between the extreme values still in question: the indicators span many
       // orders of magnitude, and each step at least halves their logarithmic spread.
       const PetscReal mid = std::sqrt(in.min) * std::sqrt(in.max);
@@ -80,10 +118,11 @@ PetscErrorCode MarkDoerfler(MPI_Comm comm, const std::vector<PetscReal> &eta2, P
       else sumHi += s, n = nBelow, in = below;                           // hi = mid
     }
     t = in.min;
+    PetscCall(CutInGap(comm, w.data(), w.size(), t, &t));
   }
   PetscInt nMarked = 0;
   for (size_t i = 0; i < eta2.size(); ++i)
-    if (eta2[i] > 0 && eta2[i] >= t * (1 - kTieSlack)) marked[i] = 1, ++nMarked;
+    if (eta2[i] > 0 && eta2[i] >= t) marked[i] = 1, ++nMarked;
   if (count) PetscCallMPI(MPI_Allreduce(&nMarked, count, 1, MPIU_INT, MPI_SUM, comm));
   PetscFunctionReturn(0);
 }

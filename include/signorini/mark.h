@@ -6,8 +6,10 @@
 // squared indicators are the quantities that add up over cells, so theta is the share of eta^2 refined).
 // M consists of the cells with the largest indicators: all cells with eta_T^2 >= t, with t the largest
 // threshold that satisfies the inequality, found by bisection on the values with global reductions (no
-// gather, no sort). Equal indicators in exact arithmetic differ at round-off between rank counts, so the
-// cells within a relative 1e-6 below t are marked too: the same cells on any number of ranks.
+// gather, no sort). Indicators equal in exact arithmetic, or packed closer than the solver's tolerance,
+// differ slightly between runs on other rank counts, so the cut is not t itself but the middle of the
+// first gap below t on a fixed grid of relative width 1e-6 (the cells of a cluster of values just below
+// t are marked too): the same cells on any number of ranks.
 #pragma once
 
 #include "signorini/common.h"
