@@ -43,6 +43,7 @@ PetscErrorCode Split(MPI_Comm comm, PetscReal *w, size_t n, PetscReal mid, size_
   *below = {r[0], -r[1]}, *above = {r[2], -r[3]};
   PetscFunctionReturn(0);
 }
+
 // The cut: every value >= it is marked. Not the threshold t itself: indicators that are equal in exact
 // arithmetic, or packed closer together than the solver's tolerance (a structured mesh has thousands
 // within 1e-9 of each other), differ from run to run on other rank counts, and a cut among them marks other
@@ -77,6 +78,7 @@ PetscErrorCode CutInGap(MPI_Comm comm, PetscReal *w, size_t n, PetscReal t, Pets
       }
   }
 }
+
 } // namespace
 
 PetscErrorCode MarkDoerfler(MPI_Comm comm, const std::vector<PetscReal> &eta2, PetscReal theta, std::vector<char> &marked, PetscInt *count)
