@@ -47,33 +47,32 @@ PetscErrorCode Split(MPI_Comm comm, PetscReal *w, size_t n, PetscReal mid, size_
 // The cut: every value >= it is marked. Not the threshold t itself: indicators that are equal in exact
 // arithmetic, or packed closer together than the solver's tolerance (a structured mesh has thousands
 // within 1e-9 of each other), differ from run to run on other rank counts, and a cut among them marks other
-// cells. So the cut lies in the middle of the first empty bin below t, on a fixed logarithmic grid of bins
-// of relative width kGap: its nearest values lie at least kGap / 2 away on either side, and it moves
-// only where a value lies within the solver's tolerance of that bin's edges. It marks every value >= t
-// (Doerfler's set) and, where values cluster below t, the cluster down to its first gap of 2 kGap or so.
-// Each pass examines kBinsPerPass bins with one reduction and leaves the values below them in w[0, n).
+// cells. So the cut lies in the middle of the first empty bin below t, the bins of relative width kGap
+// counted down from t (bin k: t (1 + kGap)^-k <= x < t (1 + kGap)^(1-k), k >= 1): its nearest values lie
+// at least kGap / 2 away on either side, and it moves only where a value lies within the solver's
+// tolerance of that bin's edges (or t moves by more than that). The bins scale with t, so indicators
+// scaled by any factor are cut alike. It marks every value >= t (Doerfler's set) and, where values cluster
+// below t, the cluster down to its first gap of 2 kGap or so. Each pass examines kBinsPerPass bins with
+// one reduction and leaves the values below them in w[0, n).
 PetscErrorCode CutInGap(MPI_Comm comm, PetscReal *w, size_t n, PetscReal t, PetscReal *cut)
 {
-  const PetscReal     width = std::log1p(kGap);
-  const auto          bin   = [width](PetscReal x) { return (PetscInt64)std::floor(std::log(x) / width); };
+  const PetscReal       width = std::log1p(kGap);
+  const auto            bin   = [t, width](PetscReal x) { return (PetscInt64)std::ceil(std::log(t / x) / width); };
   std::vector<PetscInt> count(kBinsPerPass);
   PetscFunctionBeginUser;
   n = (size_t)(std::partition(w, w + n, [t](PetscReal x) { return x < t; }) - w);
-  for (PetscInt64 top = bin(t);; top -= kBinsPerPass) { // this pass: the bins top - kBinsPerPass .. top - 1
-    const PetscInt64 low = top - kBinsPerPass;
+  for (PetscInt64 first = 1;; first += kBinsPerPass) { // this pass: the bins first .. first + kBinsPerPass - 1
+    const PetscInt64 last = first + kBinsPerPass - 1;
     std::fill(count.begin(), count.end(), 0);
     // below the pass's bins: the logarithm only near their lower edge, where its round-off matters
-    const PetscReal edge  = std::exp((PetscReal)low * width);
-    PetscReal      *below = std::partition(w, w + n, [&](PetscReal x) { return x < edge * (1 - 1e-9) || (x < edge * (1 + 1e-9) && bin(x) < low); });
-    for (PetscReal *x = below; x < w + n; ++x) {
-      const PetscInt64 b = bin(*x);
-      if (b < top) ++count[b - low]; // values of t's own bin lie above the cut anyway
-    }
+    const PetscReal edge  = t * std::exp(-(PetscReal)last * width);
+    PetscReal      *below = std::partition(w, w + n, [&](PetscReal x) { return x < edge * (1 - 1e-9) || (x < edge * (1 + 1e-9) && bin(x) > last); });
+    for (PetscReal *x = below; x < w + n; ++x) ++count[std::max<PetscInt64>(bin(*x), first) - first]; // bin 0: x rounds to t
     n = (size_t)(below - w);
     PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, count.data(), kBinsPerPass, MPIU_INT, MPI_SUM, comm));
-    for (int k = kBinsPerPass - 1; k >= 0; --k)
+    for (int k = 0; k < kBinsPerPass; ++k)
       if (count[k] == 0) {
-        *cut = std::exp(((PetscReal)(low + k) + 0.5) * width);
+        *cut = t * std::exp(-((PetscReal)(first + k) - 0.5) * width);
         PetscFunctionReturn(0);
       }
   }
@@ -102,19 +101,21 @@ PetscErrorCode MarkDoerfler(MPI_Comm comm, const std::vector<PetscReal> &eta2, P
   else if (total > 0) {
     const PetscReal target = theta * total;
     // S(x) = sum of the values >= x falls as x grows; S(lo) >= target > S(hi) throughout, the values in
-    // [lo, hi) are w[first, first + n) and sumHi = S(hi). t is the smallest value in [lo, hi) once all of
-    // them lie within kGap of each other: every value >= t must then be marked, and marking it reaches
-    // the target. Each step's pass also finds the range of the values in either half.
+    // [lo, hi) are w[first, first + n) and sumHi = S(hi). t is the value in [lo, hi) once they are all
+    // equal: the smallest value of the minimal set, every value >= t must be marked, and marking them
+    // reaches the target. Each step's pass also finds the range of the values in either half.
     PetscReal sumHi = 0;
     size_t    first = 0, n = w.size();
     Range     in = all; // the values in [lo, hi): lo = min, hi = inf
     // The largest values alone may be enough (lo = max); if not, the search starts from all of them.
     PetscCall(Split(comm, w.data(), n, all.max, &nBelow, &s, &below, &above));
     if (s >= target) first = nBelow, n -= nBelow, in = above;
-    while (in.max > in.min * (1 + kGap)) {
+    while (in.max > in.min) {
       // Bisect geometrically between the extreme values still in question: the indicators span many
-      // orders of magnitude, and each step at least halves their logarithmic spread.
-      const PetscReal mid = std::sqrt(in.min) * std::sqrt(in.max);
+      // orders of magnitude, and each step at least halves their logarithmic spread (down to neighbouring
+      // doubles, where the split falls at the larger one).
+      PetscReal mid = std::sqrt(in.min) * std::sqrt(in.max);
+      if (!(mid > in.min)) mid = in.max;
       PetscCall(Split(comm, w.data() + first, n, mid, &nBelow, &s, &below, &above));
       if (sumHi + s >= target) first += nBelow, n -= nBelow, in = above; // lo = mid
       else sumHi += s, n = nBelow, in = below;                           // hi = mid

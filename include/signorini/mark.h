@@ -8,8 +8,9 @@
 // threshold that satisfies the inequality, found by bisection on the values with global reductions (no
 // gather, no sort). Indicators equal in exact arithmetic, or packed closer than the solver's tolerance,
 // differ slightly between runs on other rank counts, so the cut is not t itself but the middle of the
-// first gap below t on a fixed grid of relative width 1e-6 (the cells of a cluster of values just below
-// t are marked too): the same cells on any number of ranks.
+// first empty bin below t, the bins of relative width 1e-6 counted down from t (the cells of a cluster of
+// values just below t are marked too): the same cells on any number of ranks, and for indicators scaled
+// by any factor.
 #pragma once
 
 #include "signorini/common.h"
