@@ -1,7 +1,8 @@
 """Adaptive refinement (-adapt_steps): solve, estimate, mark, refine. Checked end to end:
   - the same adapted meshes on 1 and 2 ranks (cells, DOFs, marked cells at every step) and the same final
     energy (1e-9 relative), also when the refined mesh is redistributed at every step (-adapt_imbalance 1),
-    and on 1 and 3 ranks where thousands of indicators lie closer together than the solver's tolerance;
+    and on 1 and 3 ranks where thousands of indicators lie closer together than the solver's tolerance,
+    and with the load scaled by 3.7e-3 and 1e10;
   - every step refines, eta falls, eta bounds the energy error from above (the guaranteed bound) with
     efficiency index <= 3 at every step on the manufactured scenes, the last solution satisfies the KKT
     conditions, and the summary describes the last mesh (cells, DOFs, the "adapt" rows);
@@ -133,6 +134,14 @@ _, _, _, s3 = run(args, ranks=3)
 meshes = [[(r["cells"], r["dofs"], r["marked"]) for r in s["adapt"]] for s in (s1, s3)]
 c.check(meshes[0] == meshes[1], "stiff-critical -box_faces 64,64 p1: the same adapted meshes on 1 and 3 ranks (marked %s, %s)" % (
     [m[2] for m in meshes[0]], [m[2] for m in meshes[1]]))
+
+# Scaling: a load 3.7e-3 or 1e10 times as large scales every indicator alike, and the marking with it (mark.h).
+meshes = {}
+for factor in ["1", "3.7e-3", "1e10"]:
+    _, _, _, s = run(scene("stiff-load") + ["-f", factor + "*2*pi*sin(2*pi*x)", "-space", "cr", "-adapt_steps", "5"])
+    meshes[factor] = [(r["cells"], r["marked"]) for r in s["adapt"]]
+c.check(meshes["1"] == meshes["3.7e-3"] == meshes["1e10"], "stiff-load cr: the same adapted meshes with f scaled by 1, 3.7e-3, 1e10 (marked %s)" % (
+    ", ".join(str([m[1] for m in meshes[k]]) for k in meshes)))
 
 # The singular scene: u ~ r^(1/2) next to (1/2, 0).
 for el in ["cr", "p1"]:
