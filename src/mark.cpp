@@ -115,7 +115,7 @@ PetscErrorCode MarkDoerfler(MPI_Comm comm, const std::vector<PetscReal> &eta2, P
       // orders of magnitude, and each step at least halves their logarithmic spread (down to neighbouring
       // doubles, where the split falls at the larger one).
       PetscReal mid = std::sqrt(in.min) * std::sqrt(in.max);
-      if (!(mid > in.min)) mid = in.max;
+      if (!(mid > in.min && mid <= in.max)) mid = in.max;
       PetscCall(Split(comm, w.data() + first, n, mid, &nBelow, &s, &below, &above));
       if (sumHi + s >= target) first += nBelow, n -= nBelow, in = above; // lo = mid
       else sumHi += s, n = nBelow, in = below;                           // hi = mid
