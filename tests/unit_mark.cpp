@@ -6,7 +6,8 @@
 // as round-off makes equal indicators differ, and 1e-9 on a cluster of 100 000 values packed 1e-10 apart (as
 // a structured mesh packs indicators, and the solver's tolerance perturbs them), so the same cells must be
 // marked on 1 and 2 ranks, and the same again when all values are scaled by 3.3e-9, 0.37 or 7.1e3 (as the
-// size of the data scales the indicators); the check also asserts the Doerfler property. Runs on 1 and 2 ranks (ctest).
+// size of the data scales the indicators), and on two neighbouring doubles, where the threshold search ends;
+// the check also asserts the Doerfler property. Runs on 1 and 2 ranks (ctest).
 #include "signorini/mark.h"
 #include "unit_check.h"
 
@@ -102,12 +103,14 @@ int main(int argc, char **argv)
     const PetscInt j = g / 2;
     return g % 2 ? 0.5 * std::pow(10.0, -3 * std::fmod(g * 0.6180339887, 1.0)) : 1 + 1e-10 * (PetscReal)j + (j >= 50000 ? 1.5e-6 : 0);
   };
+  // Two neighbouring doubles, unperturbed: the threshold search ends between them.
+  const Generator neighbours = [](PetscInt g) { return g % 2 ? 1.0 : std::nextafter(1.0, 2.0); };
   struct Case {
     const char *name;
     PetscInt    n;
     Generator   value;
     PetscReal   noise;
-  } cases[] = {{"ties", 1000, ties, 1e-13}, {"spread", 1001, spread, 1e-13}, {"peak", 100, peak, 1e-13}, {"all zero", 50, zero, 1e-13}, {"all equal", 64, equal, 1e-13}, {"cluster", 200000, cluster, 1e-9}};
+  } cases[] = {{"ties", 1000, ties, 1e-13}, {"spread", 1001, spread, 1e-13}, {"peak", 100, peak, 1e-13}, {"all zero", 50, zero, 1e-13}, {"all equal", 64, equal, 1e-13}, {"cluster", 200000, cluster, 1e-9}, {"neighbouring doubles", 100, neighbours, 0}};
   for (const Case &c : cases)
     for (PetscReal scale : {1.0, 3.3e-9, 0.37, 7.1e3})
       for (PetscReal theta : {0.01, 0.3, 0.5, 0.9, 1.0}) {
