@@ -39,6 +39,11 @@ def slope(dofs, values):
     return sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / sum((x - mx) ** 2 for x in xs)
 
 
+def adapted_meshes(s):
+    """The sequence of adapted meshes of a run's summary: cells, DOFs and marked cells of every step."""
+    return [(r["cells"], r["dofs"], r["marked"]) for r in s["adapt"]]
+
+
 def kkt_ok(tag, s):
     k = s["kkt"]
     c.check(s["solver"]["converged_reason"].startswith("CONVERGED") and k["min_gap"] >= -1e-12 and k["relative"] <= 1e-6,
@@ -71,7 +76,7 @@ for ranks, extra in [(1, []), (2, []), (2, ["-adapt_imbalance", "1"])]:
 one = runs[(1, False)]
 for key in [(2, False), (2, True)]:
     other = runs[key]
-    same = [(a["cells"], a["dofs"], a["marked"]) for a in one["adapt"]] == [(b["cells"], b["dofs"], b["marked"]) for b in other["adapt"]]
+    same = adapted_meshes(one) == adapted_meshes(other)
     c.check(same, "2 ranks%s: the same adapted meshes as on 1 rank (cells, DOFs, marked cells per step)" % (" redistributed" if key[1] else ""))
     c.check(abs(other["energy"] - one["energy"]) <= 1e-9 * abs(one["energy"]), "2 ranks%s: energy %.15e, 1 rank %.15e" % (" redistributed" if key[1] else "", other["energy"], one["energy"]))
 
@@ -93,7 +98,7 @@ for name, extra in [("manufactured-2d", ["-space", "p1", "-box_faces", "8", "-ad
     c.check(all(b["cells"] > a["cells"] for a, b in zip(rows, rows[1:])) and rows[-1]["eta"] < rows[0]["eta"],
             "%s: every step refines, eta falls (%s cells, eta %s)" % (tag, [r["cells"] for r in rows], ["%.3g" % r["eta"] for r in rows]))
     c.check(all(r["error"] <= r["eta"] <= 3 * r["error"] for r in rows), "%s: energy error <= eta <= 3 x error at every step (indices %s)" % (tag, ["%.2f" % (r["eta"] / r["error"]) for r in rows]))
-    same = [(a["cells"], a["dofs"], a["marked"]) for a in rows] == [(b["cells"], b["dofs"], b["marked"]) for b in s2["adapt"]]
+    same = adapted_meshes(s1) == adapted_meshes(s2)
     c.check(same and abs(s2["energy"] - s1["energy"]) <= 1e-9 * abs(s1["energy"]),
             "%s: the same adapted meshes and energy on 2 ranks, redistributed (%.15e, %.15e)" % (tag, s1["energy"], s2["energy"]))
     kkt_ok(tag, s2)
@@ -120,18 +125,18 @@ for name, extra, levels in [("manufactured-2d", ["-box_faces", "32"], 3), ("manu
                 and all(r["nested_levels"] == 0 for r in alone["adapt"]),
                 "%s: step 0 by nested iteration over %d levels, with -nested 0 from u_D (%s, %s)" % (tag, levels, [r["nested_levels"] for r in s["adapt"]], [r["nested_levels"] for r in alone["adapt"]]))
         for other, what in [(alone, "-nested 0"), (s2, "2 ranks")]:
-            same = [(a["cells"], a["dofs"], a["marked"]) for a in s["adapt"]] == [(b["cells"], b["dofs"], b["marked"]) for b in other["adapt"]]
+            same = adapted_meshes(s) == adapted_meshes(other)
             deta = max(abs(a["eta"] - b["eta"]) / a["eta"] for a, b in zip(s["adapt"], other["adapt"]))
             c.check(same and deta <= 1e-6 and abs(other["energy"] - s["energy"]) <= 1e-9 * abs(s["energy"]),
                     "%s: the same adapted meshes as %s, eta within %.1e (<= 1e-6), energy %.15e against %.15e" % (tag, what, deta, s["energy"], other["energy"]))
 
 # A structured mesh under a periodic load packs thousands of indicators closer together than the solver's
-# tolerance perturbs them between rank counts (mark.h): the same adapted meshes on 1 and 3 ranks all the
-# same (with the cut at the Doerfler threshold itself, step 3 marked 119 426 cells on 1 rank, 119 425 on 3).
+# tolerance perturbs them between rank counts (mark.h): the same adapted meshes on 1 and 3 ranks (with the
+# cut at the Doerfler threshold itself, step 3 marked 119 426 cells on 1 rank, 119 425 on 3).
 args = scene("stiff-critical") + ["-box_faces", "64,64", "-space", "p1", "-adapt_steps", "4"]
 _, _, _, s1 = run(args)
 _, _, _, s3 = run(args, ranks=3)
-meshes = [[(r["cells"], r["dofs"], r["marked"]) for r in s["adapt"]] for s in (s1, s3)]
+meshes = [adapted_meshes(s) for s in (s1, s3)]
 c.check(meshes[0] == meshes[1], "stiff-critical -box_faces 64,64 p1: the same adapted meshes on 1 and 3 ranks (marked %s, %s)" % (
     [m[2] for m in meshes[0]], [m[2] for m in meshes[1]]))
 
@@ -139,9 +144,9 @@ c.check(meshes[0] == meshes[1], "stiff-critical -box_faces 64,64 p1: the same ad
 meshes = {}
 for factor in ["1", "3.7e-3", "1e10"]:
     _, _, _, s = run(scene("stiff-load") + ["-f", factor + "*2*pi*sin(2*pi*x)", "-space", "cr", "-adapt_steps", "5"])
-    meshes[factor] = [(r["cells"], r["marked"]) for r in s["adapt"]]
+    meshes[factor] = adapted_meshes(s)
 c.check(meshes["1"] == meshes["3.7e-3"] == meshes["1e10"], "stiff-load cr: the same adapted meshes with f scaled by 1, 3.7e-3, 1e10 (marked %s)" % (
-    ", ".join(str([m[1] for m in meshes[k]]) for k in meshes)))
+    ", ".join(str([m[2] for m in meshes[k]]) for k in meshes)))
 
 # The singular scene: u ~ r^(1/2) next to (1/2, 0).
 for el in ["cr", "p1"]:
