@@ -558,9 +558,13 @@ def compare_times(rep, name, uniform_refine, element):
         tu = u["time"]["total"]
     else:
         step = steps.index(reached)
-        tu, ta = best_times(rep, row, uniform_args, u, base + ["-adapt_steps", str(max(step, 1)), "-adapt_max_dofs", str(u["dofs"])],
-                            step, reached)
+        prev = steps[step - 1] if step > 0 else None
+        tu, ta, tb = best_times(rep, row, uniform_args, u, base + ["-adapt_steps", str(max(step, 1)), "-adapt_max_dofs", str(u["dofs"])],
+                                step, reached, prev)
         row["time_ratio"] = ta / tu
+        curve = curve_time(prev, tb, reached, ta, error)
+        if curve is not None:
+            row["curve_ratio"] = curve / tu
     conservative = ("by eta < E: %d DOFs in %.3f s, ratio %.3f" % (by_eta["dofs"], by_eta["run_seconds"], by_eta["run_seconds"] / tu)
                     if by_eta else "eta not below E within %d DOFs" % u["dofs"])
     row["check"] = "uniform %d DOFs, error %.3e (vs %d adapted DOFs, eta %.2e) in %.3f s; " % (
@@ -570,6 +574,8 @@ def compare_times(rep, name, uniform_refine, element):
         return rep.add(row)
     row["check"] += ("adaptive %d DOFs, error %.3e (vs adaptive reference) in %.3f s: time ratio %.3f, target <= %g (%s)" % (
         reached["dofs"], reached["error_reference"], ta, row["time_ratio"], TIME_RATIO, conservative))
+    if "curve_ratio" in row:
+        row["check"] += "; on the adaptive error-time curve, between step %d and %d: ratio %.3f" % (step - 1, step, row["curve_ratio"])
     row["check"] += "; fastest of %d alternate runs each, uniform %s s, adaptive %s s" % (
         TIME_REPEATS, "/".join("%.3f" % x for x in row["uniform_seconds"]), "/".join("%.3f" % x for x in row["adaptive_seconds"]))
     if "slope_error" in row:
@@ -585,17 +591,24 @@ def compare_times(rep, name, uniform_refine, element):
 TIME_REPEATS = 3
 
 
-def best_times(rep, row, uniform_args, u, adaptive_args, step, reached):
+def best_times(rep, row, uniform_args, u, adaptive_args, step, reached, prev):
     """The fastest of TIME_REPEATS timings of the uniform run (first: its summary u) and of the adaptive run
-    up to its step `step` (first: that step's row `reached`), the others by runs of the same commands
+    up to its step `step` (first: that step's row `reached`, and prev the step before), the others by runs of the same commands
     alternately, without their references (which come after the timed part). Each repeat must give the
-    same DOFs. Records both lists in row; returns (uniform, adaptive) seconds."""
+    same DOFs. Records both lists in row; returns (uniform, adaptive) seconds and the fastest time of
+    the adaptive run up to step `step` - 1 in the same runs (None for step 0)."""
+    before = [prev["run_seconds"]] if prev else []
+
     def uniform_time(s):
         return s["time"]["total"] if s["dofs"] == u["dofs"] else None
 
     def adaptive_time(s):
         steps = s.get("adapt") or []
-        return steps[step]["run_seconds"] if len(steps) > step and steps[step]["dofs"] == reached["dofs"] else None
+        if not (len(steps) > step and steps[step]["dofs"] == reached["dofs"]):
+            return None
+        if step > 0:
+            before.append(steps[step - 1]["run_seconds"])
+        return steps[step]["run_seconds"]
     sides = [("uniform", uniform_args, uniform_time, [u["time"]["total"]]),
              ("adaptive", adaptive_args, adaptive_time, [reached["run_seconds"]])]
     for _ in range(TIME_REPEATS - 1):
@@ -608,7 +621,20 @@ def best_times(rep, row, uniform_args, u, adaptive_args, step, reached):
             else:
                 times.append(t)
     row["uniform_seconds"], row["adaptive_seconds"] = sides[0][3], sides[1][3]
-    return min(sides[0][3]), min(sides[1][3])
+    return min(sides[0][3]), min(sides[1][3]), (min(before) if before else None)
+
+
+def curve_time(prev, t_prev, reached, t_reached, error):
+    """The time at which the adaptive run's error would reach `error` on its error-time curve, interpolated
+    log-log between the step before the first step below it (prev, timed t_prev) and that step (reached,
+    t_reached); None without the step before. The steps grow the mesh by a factor each, so the first step
+    below a given error lies anywhere up to that factor beyond it; this figure leaves out where the steps
+    happen to fall (the time ratio proper does not)."""
+    if prev is None or t_prev is None or not prev.get("error_reference") or prev["error_reference"] <= error:
+        return None
+    e0, e1 = prev["error_reference"], reached["error_reference"]
+    f = math.log(e0 / error) / math.log(e0 / e1)
+    return t_prev * (t_reached / t_prev) ** f
 
 
 def available_memory():
@@ -669,7 +695,7 @@ def finest(rep, budget_seconds=300.0, memory=24 * 2**30):
 COLUMNS = ["scene", "variant", "element", "solver", "dofs", "newton", "ksp", "reason", "active", "contact_dofs", "min_gap",
            "min_pressure", "max_pressure", "max_complementarity", "kkt", "stationarity", "energy", "l2", "h1", "energy_error",
            "eta", "index", "index_min", "index_max", "rate_l2", "rate_h1", "fit_l2", "fit_h1", "steps", "slope_eta",
-           "slope_error", "time_ratio", "reference_eta", "switches", "max_u", "peak_rss", "bytes_per_dof", "seconds", "status", "check", "notes"]
+           "slope_error", "time_ratio", "curve_ratio", "reference_eta", "switches", "max_u", "peak_rss", "bytes_per_dof", "seconds", "status", "check", "notes"]
 
 
 def write_csv(rows, path):

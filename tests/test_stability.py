@@ -8,7 +8,8 @@ checked against the report's own uniform rows rather than against fixed numbers:
     an adaptive refinement of that run's mesh: no more than the run's own estimate plus the reference's (the
     triangle inequality, with eta bounding each true error), the adaptive error (against the adaptive run
     carried further) falls like DOFs^s, s <= -0.45, and a positive time ratio (its size is reported,
-    not tested: timing is never a pass/fail test)."""
+    not tested: timing is never a pass/fail test), with the time interpolated on the adaptive error-time
+    curve no later than the step it is interpolated towards (an invariant of the interpolation)."""
 import csv
 import os
 import subprocess
@@ -42,6 +43,9 @@ with tempfile.TemporaryDirectory() as tmp:
         c.check(t["dofs"] == study[0]["dofs"] and float(t["energy_error"]) <= bound,
                 "%s time row: uniform %s DOFs (study %s), error %s <= eta + reference eta %.4e" % (element, t["dofs"], study[0]["dofs"], t["energy_error"], bound))
         c.check(float(t["time_ratio"]) > 0, "%s time row: ratio %s" % (element, t["time_ratio"]))
+        # interpolated between the step before and the timed step, from the same runs: below the latter's time
+        if t["curve_ratio"] != "":
+            c.check(0 < float(t["curve_ratio"]) <= float(t["time_ratio"]), "%s time row: curve ratio %s in (0, time ratio %s]" % (element, t["curve_ratio"], t["time_ratio"]))
         c.check(t["slope_error"] != "" and float(t["slope_error"]) <= -0.45, "%s time row: adaptive error ~ DOFs^%s, <= -0.45" % (element, t["slope_error"]))
         c.check(t["status"] in ("ok", "above target"), "%s time row: status %s (%s)" % (element, t["status"], t["notes"]))
 c.done()
