@@ -593,10 +593,11 @@ TIME_REPEATS = 3
 
 def best_times(rep, row, uniform_args, u, adaptive_args, step, reached, prev):
     """The fastest of TIME_REPEATS timings of the uniform run (first: its summary u) and of the adaptive run
-    up to its step `step` (first: that step's row `reached`, and prev the step before), the others by runs of the same commands
-    alternately, without their references (which come after the timed part). Each repeat must give the
-    same DOFs. Records both lists in row; returns (uniform, adaptive) seconds and the fastest time of
-    the adaptive run up to step `step` - 1 in the same runs (None for step 0)."""
+    up to its step `step` (first: that step's row `reached`, and `prev` the row of the step before, None
+    for step 0), the others by runs of the same commands alternately, without their references (which
+    come after the timed part). Each repeat must give the same DOFs. Records both lists in row; returns
+    (uniform, adaptive) seconds and the fastest time of the same adaptive runs up to step `step` - 1
+    (None for step 0)."""
     before = [prev["run_seconds"]] if prev else []
 
     def uniform_time(s):
