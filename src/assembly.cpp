@@ -123,19 +123,24 @@ PetscReal PoincareConstant(PetscInt dim, const PetscReal *X)
     L[e] = (a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]);
     h2   = std::max(h2, L[e]);
   }
-  int       k     = 0;
-  PetscReal trace = PETSC_MAX_REAL;
+  PetscReal t[12], least = PETSC_MAX_REAL;
   for (int i = 0; i < 12; ++i) {
-    const PetscReal t = L[kPath[i][0]] + L[kPath[i][1]] + L[kPath[i][2]];
-    k                 = t < trace ? i : k;
-    trace             = std::min(trace, t);
+    t[i]  = L[kPath[i][0]] + L[kPath[i][1]] + L[kPath[i][2]];
+    least = std::min(least, t[i]);
   }
-  const int      *p   = kPath[k];
-  const PetscReal g11 = L[p[0]], g22 = L[p[1]], g33 = L[p[2]];
-  const PetscReal g12 = 0.5 * (L[p[3]] - g11 - g22), g23 = 0.5 * (L[p[4]] - g22 - g33), g13 = 0.5 * (L[p[5]] - g11 - g22 - g33) - g12 - g23;
-  const PetscReal a12 = std::abs(g12), a13 = std::abs(g13), a23 = std::abs(g23);
-  const PetscReal w1 = g11 + a12 + a13, w2 = a12 + g22 + a23, w3 = a13 + a23 + g33;
-  const PetscReal lambda = std::max(std::max((g11 * w1 + a12 * w2 + a13 * w3) / w1, (a12 * w1 + g22 * w2 + a23 * w3) / w2), (a13 * w1 + a23 * w2 + g33 * w3) / w3);
+  // Every path whose sum ties with the least (up to round-off), not the first of them: which one comes first
+  // depends on the order of T's vertices, which differs between ranks on other partitions, and tied paths
+  // can give different bounds (the estimate differed by 1e-4 on 1 and 2 ranks on bisected Kuhn tetrahedra).
+  PetscReal lambda = PETSC_MAX_REAL;
+  for (int i = 0; i < 12; ++i) {
+    if (t[i] > least * (1 + 1e-10)) continue;
+    const int      *p   = kPath[i];
+    const PetscReal g11 = L[p[0]], g22 = L[p[1]], g33 = L[p[2]];
+    const PetscReal g12 = 0.5 * (L[p[3]] - g11 - g22), g23 = 0.5 * (L[p[4]] - g22 - g33), g13 = 0.5 * (L[p[5]] - g11 - g22 - g33) - g12 - g23;
+    const PetscReal a12 = std::abs(g12), a13 = std::abs(g13), a23 = std::abs(g23);
+    const PetscReal w1 = g11 + a12 + a13, w2 = a12 + g22 + a23, w3 = a13 + a23 + g33;
+    lambda = std::min(lambda, std::max(std::max((g11 * w1 + a12 * w2 + a13 * w3) / w1, (a12 * w1 + g22 * w2 + a23 * w3) / w2), (a13 * w1 + a23 * w2 + g33 * w3) / w3));
+  }
   return std::sqrt(std::min(h2, lambda)) / M_PI;
 }
 
