@@ -109,7 +109,7 @@ PetscReal PoincareConstant(PetscInt dim, const PetscReal *X)
     }
     return std::sqrt(norm2) / M_PI;
   }
-  // Tetrahedra: of the twelve paths, the one whose edges have the least sum of squares (any path gives a
+  // Tetrahedra: of the twelve paths, those whose edges have the least sum of squares (any path gives a
   // bound; for Kuhn's tetrahedra this is the one of three orthogonal edges, and choosing it costs a few
   // additions where bounding all twelve cost five times the diameter). Its Gram matrix's largest eigenvalue
   // is bounded above by Collatz-Wielandt's max_i (|G| w)_i / w_i with w = |G| (1, 1, 1) (exact where G is
@@ -130,7 +130,8 @@ PetscReal PoincareConstant(PetscInt dim, const PetscReal *X)
   }
   // Every path whose sum ties with the least (up to round-off), not the first of them: which one comes first
   // depends on the order of T's vertices, which differs between ranks on other partitions, and tied paths
-  // can give different bounds (the estimate differed by 1e-4 on 1 and 2 ranks on bisected Kuhn tetrahedra).
+  // can give different bounds (on an adapted mesh of bisected Kuhn tetrahedra the oscillation differed by
+  // 1e-4 between 1 and 2 ranks).
   PetscReal lambda = PETSC_MAX_REAL;
   for (int i = 0; i < 12; ++i) {
     if (t[i] > least * (1 + 1e-10)) continue;
