@@ -631,7 +631,7 @@ def curve_time(prev, t_prev, reached, t_reached, error):
     t_reached); None without the step before. The steps grow the mesh by a factor each, so the first step
     below a given error lies anywhere up to that factor beyond it; this figure leaves out where the steps
     happen to fall (the time ratio proper does not)."""
-    if prev is None or t_prev is None or not prev.get("error_reference") or prev["error_reference"] <= error:
+    if prev is None or t_prev is None or prev.get("error_reference") is None:  # (above `error`, when known)
         return None
     e0, e1 = prev["error_reference"], reached["error_reference"]
     f = math.log(e0 / error) / math.log(e0 / e1)

@@ -74,6 +74,17 @@ Cell Permuted(int dim, const Cell &X, const int *perm)
   return Y;
 }
 
+// The largest of f (>= 0) over the cell with its vertices in every order.
+template <class F>
+double MaxOverVertexOrders(int dim, const Cell &X, const F &f)
+{
+  int    perm[4] = {0, 1, 2, 3};
+  double worst   = 0;
+  do worst = std::max(worst, f(Permuted(dim, X, perm)));
+  while (std::next_permutation(perm, perm + dim + 1));
+  return worst;
+}
+
 // The largest eigenvalue of a symmetric dim x dim matrix (Jacobi rotations until the off-diagonal vanishes).
 double LargestEigenvalue(int dim, double A[3][3])
 {
@@ -156,11 +167,7 @@ double EigenfunctionQuotient(int dim, const Cell &X, const signorini::Quadrature
 // Every vertex order of the cell: each carries phi differently, and each quotient must stay below C^2.
 double WorstEigenfunctionQuotient(int dim, const Cell &X, const signorini::Quadrature &rule)
 {
-  int    perm[4] = {0, 1, 2, 3};
-  double worst   = 0;
-  do worst = std::max(worst, EigenfunctionQuotient(dim, Permuted(dim, X, perm), rule));
-  while (std::next_permutation(perm, perm + dim + 1));
-  return worst;
+  return MaxOverVertexOrders(dim, X, [&](const Cell &Y) { return EigenfunctionQuotient(dim, Y, rule); });
 }
 
 void TestExact(unit::Checker &ck, int dim, const signorini::Quadrature &rule)
@@ -168,10 +175,7 @@ void TestExact(unit::Checker &ck, int dim, const signorini::Quadrature &rule)
   const std::string tag = std::to_string(dim) + "D";
   const double      t[3] = {0.3, -1.2, 2.5}, leg = 0.37;
   const Cell        K = Move(dim, Reference(dim), leg, 0.7, 1.1, t);
-  int               perm[4] = {0, 1, 2, 3};
-  double            worst = 0;
-  do worst = std::max(worst, std::abs(PoincareConstant(dim, Permuted(dim, K, perm).data()) * M_PI / leg - 1));
-  while (std::next_permutation(perm, perm + dim + 1));
+  const double      worst = MaxOverVertexOrders(dim, K, [&](const Cell &Y) { return std::abs(PoincareConstant(dim, Y.data()) * M_PI / leg - 1); });
   ck.Check(worst < 1e-13, tag + " reference cell (leg 0.37, turned, every vertex order): C = leg / pi", "largest relative deviation %.3g", worst);
   // The bound is attained: the eigenfunction's quotient is C^2 (to the quadrature's error).
   const double C = PoincareConstant(dim, K.data());
@@ -251,10 +255,8 @@ void TestVertexOrder(unit::Checker &ck, int dim)
   }
   double worst = 0;
   for (const Cell &X : cells) {
-    const double C       = PoincareConstant(dim, X.data());
-    int          perm[4] = {0, 1, 2, 3};
-    do worst = std::max(worst, std::abs(PoincareConstant(dim, Permuted(dim, X, perm).data()) / C - 1));
-    while (std::next_permutation(perm, perm + dim + 1));
+    const double C = PoincareConstant(dim, X.data());
+    worst          = std::max(worst, MaxOverVertexOrders(dim, X, [&](const Cell &Y) { return std::abs(PoincareConstant(dim, Y.data()) / C - 1); }));
   }
   ck.Check(worst < 1e-13, tag + " C the same in every vertex order (" + std::to_string(cells.size()) + " cells: bisections of the reference cell, random)", "largest relative deviation %.3g", worst);
 }
