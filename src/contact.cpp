@@ -4,6 +4,7 @@
 #include "signorini/options.h"
 #include "signorini/report.h"
 #include "signorini/stages.h"
+#include "signorini/stall.h"
 
 #include <algorithm>
 #include <cmath>
@@ -330,7 +331,7 @@ static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &
   // The residual the solve has to reach: rtol relative to the start from u_D, whatever the start.
   PetscReal f0;
   PetscCall(StraightStartNorm(snes, sys, lower, &f0));
-  const PetscReal target = PetscMax(atol, rtol * f0);
+  const PetscReal target = PetscMax(atol, rtol * f0), rtolAsked = rtol, atolAsked = atol;
   r.defaultTarget        = kSnesRtol * f0;
   PetscCall(LoosenedStoppingTest(snes, atol, rtol, r));
   if (opts.initialGuess) {
@@ -343,6 +344,8 @@ static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &
   PetscBool rsls; // the energies need F = A u - b and CG on blocks of A: the reduced-space solver's
   PetscCall(PetscObjectTypeCompare((PetscObject)snes, SNESVINEWTONRSLS, &rsls));
   if (rsls && (opts.energyError > 0 || opts.startError > 0)) PetscCall(EnergyStopInstall(snes, sys, opts, scale, energyStop));
+  StallGuard stall; // last: it wraps the test in place
+  if (rsls) PetscCall(StallGuardInstall(snes, stall));
   // Inexact Newton: the problem is linear on the inactive set, so once the active set is right, one step
   // whose linear residual is below the target ends the solve; solving further would be wasted. The KSP
   // measures the true (unpreconditioned) residual, which is what the SNES test sees after the step.
@@ -367,9 +370,26 @@ static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &
   r.stoppedBy = !energyStop.stopped ? "full" : opts.energyError > 0 ? "energy_error" : "start_error";
   PetscCall(energyStop.Destroy());
   PetscCall(SNESDestroy(&snes));
+  PetscCall(stall.Destroy());
   PetscCall(MatDestroy(&J));
   PetscCall(VecDestroy(&upper));
   PetscCall(VecDestroy(&F));
+  // At the floor with the default tolerances (stiff rows: kappa jumps, stretched cells) the active set has
+  // settled and every further step would only repeat the last: that is the solution, and the KKT checks
+  // after the solve are its test. A tolerance the user tightened below the floor is the user's to loosen.
+  const bool tightened = target < r.defaultTarget * (1 - 1e-12);
+  if (stall.stopped && !tightened) {
+    r.reason    = "CONVERGED_ROUNDOFF_FLOOR";
+    r.stoppedBy = "roundoff_floor";
+    reason      = SNES_CONVERGED_ITS;
+  }
+  if (stall.stopped && tightened) {
+    // the least tolerances worth asking for: ten times the floor, up to a power of ten
+    const auto      up      = [](PetscReal t) { return std::pow((PetscReal)10, std::ceil(std::log10(t))); };
+    const PetscReal atolMin = up(10 * stall.floor), rtolMin = up(10 * stall.floor / f0);
+    const std::string asked = atolAsked >= rtolAsked * f0 ? Format("-snes_atol %g", (double)atolAsked) : Format("-snes_rtol %g times the residual %.3e of the start from u_D", (double)rtolAsked, (double)f0);
+    SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)u), "solver: the contact solve cannot reach the residual asked for, %.2e (%s): its round-off floor is about %.2e (%" PetscInt_FMT " Newton steps on the same active set did not lower it); ask for -snes_rtol %.0e or -snes_atol %.0e or more", (double)target, asked.c_str(), (double)stall.floor, StallGuard::kStalledSteps, (double)rtolMin, (double)atolMin);
+  }
   if (reason <= 0) SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)u), "solver: the contact solve (SNESVI) did not converge (%s after %" PetscInt_FMT " Newton iterations); see -snes_monitor -snes_vi_monitor -ksp_converged_reason; for kappa jumps or stretched cells, -options_file petsc-options/solvers/high-contrast", r.reason.c_str(), r.newtonIts);
   PetscFunctionReturn(0);
 }

@@ -1,4 +1,8 @@
-"""A run whose SNES or KSP does not converge says so on one line and exits non-zero, writing no summary."""
+"""A run whose SNES or KSP does not converge says so on one line and exits non-zero, writing no summary. A
+tolerance below the residual's round-off floor is named as such within a few Newton steps, and the
+tolerance the message advises converges (checked by running it)."""
+import re
+
 from harness import Checker, run, scene
 
 c = Checker()
@@ -16,4 +20,32 @@ for what, args, reason in cases:
         c.check(len(lines) == 1 and lines[0].startswith("signorini: error: solver:") and reason in lines[0],
                 "%s, %d rank(s): one-line message %r" % (what, ranks, lines))
         c.check(summary is None, "%s, %d rank(s): no summary written" % (what, ranks))
+
+# Tolerances no double-precision solve reaches: the default path (nested iteration, multigrid) and a
+# single mesh (BoomerAMG), each element. Before the floor test these ran 200 Newton steps and ended with
+# DIVERGED_MAX_IT and a hint about kappa jumps.
+floor_cases = [
+    ("-snes_rtol 1e-16, paper-5.1 nested", scene("paper-5.1") + ["-box_faces", "64", "-snes_rtol", "1e-16", "-snes_converged_reason"]),
+    ("-snes_atol 1e-20 -snes_rtol 0, stiff-critical one mesh", scene("stiff-critical") + ["-box_faces", "32,32", "-nested", "0", "-snes_atol", "1e-20", "-snes_rtol", "0", "-snes_converged_reason"]),
+]
+for what, args in floor_cases:
+    for element in ["p1", "cr"]:
+        for ranks in [1, 2]:
+            tag = "%s, %s, %d rank(s)" % (what, element, ranks)
+            rc, out, err, summary = run(args + ["-space", element], ranks=ranks, check=False)
+            lines = [l for l in err.splitlines() if l.strip() and (ranks == 1 or l.startswith("signorini"))]
+            c.check(rc == 1 and summary is None, "%s: exit status %d, no summary" % (tag, rc))
+            one = len(lines) == 1 and lines[0].startswith("signorini: error: solver:") and "round-off floor" in lines[0]
+            c.check(one, "%s: one line naming the round-off floor %r" % (tag, lines))
+            steps = [int(n) for n in re.findall(r"DIVERGED_\w+ iterations (\d+)", out)]
+            c.check(len(steps) == 1 and steps[0] <= 20, "%s: stopped after %s Newton steps (the floor test needs 5 at the floor)" % (tag, steps))
+            advice = re.search(r"ask for -snes_rtol (\S+) or -snes_atol (\S+) or more", lines[0]) if one else None
+            c.check(advice is not None, "%s: the message advises a tolerance" % tag)
+            if advice and ranks == 1:
+                base = [a for a in args if a != "-snes_converged_reason"]
+                rtol, atol = advice.group(1), advice.group(2)
+                for extra in (["-snes_rtol", rtol], ["-snes_rtol", "0", "-snes_atol", atol]):
+                    rc2, _, _, s2 = run(base + ["-space", element] + extra, check=False)
+                    c.check(rc2 == 0 and s2 is not None and s2["solver"]["converged_reason"].startswith("CONVERGED"),
+                            "%s: the advised %s converges (exit %d)" % (tag, " ".join(extra), rc2))
 c.done()

@@ -1,0 +1,39 @@
+// The round-off floor of the contact solve's residual: a stopping test that sees when Newton steps no
+// longer reduce ||F||, so that a tolerance below what double precision gives ends in a few steps with a
+// message naming the floor, not after -snes_max_it steps with DIVERGED_MAX_IT.
+//
+// Why it cannot stop a solve that still converges: the problem is linear on the inactive set, so after a
+// reduced-space step taken on the same active set as the step before (the set before it, the one it used
+// and the one after it all equal), the new residual on the inactive set is, in exact arithmetic, the
+// final residual of the step's linear solve (the KSP's unpreconditioned norm), however loosely that solve
+// stopped. A step whose new ||F|| exceeds that linear residual kGap times and is more than half the
+// ||F|| before has met the floor: the residual computed afresh carries round-off that the linear
+// solver's recursive one does not. kStalledSteps such steps in a row stop the solve (the floor
+// fluctuates, so a target at the floor still gets a few tries). Where the active set still moves, or the
+// KSP measures another norm, nothing is judged.
+#pragma once
+
+#include <petscsnes.h>
+
+namespace signorini {
+
+struct StallGuard {
+  static constexpr PetscInt  kStalledSteps = 5;
+  static constexpr PetscReal kGap          = 2;
+  // the test it wraps (the SNES's own, or the energy test of energystop.h)
+  PetscErrorCode (*inner)(SNES, PetscInt, PetscReal, PetscReal, PetscReal, SNESConvergedReason *, void *) = nullptr;
+  void          *innerCtx = nullptr;
+  PetscErrorCode (*innerDestroy)(void *) = nullptr;
+  IS             before[2] = {nullptr, nullptr}; // the active sets of the two tests before, newest first
+  PetscReal      lastNorm  = 0;
+  PetscInt       stalled   = 0;     // steps in a row on the floor
+  bool           stopped   = false; // the solve ended on the floor
+  PetscReal      floor     = 0;     // the least ||F|| of those steps
+  PetscErrorCode Destroy();
+};
+
+// Wraps snes's current convergence test (install it after every other one), unless that is
+// -snes_convergence_test skip. A SNESVINEWTONRSLS only. Collective.
+PetscErrorCode StallGuardInstall(SNES snes, StallGuard &g);
+
+} // namespace signorini
