@@ -153,7 +153,11 @@ int ExitStatus(MPI_Comm comm, PetscErrorCode ierr, const char *program)
     return 1;
   }
   std::fprintf(stderr, "%s: error on rank %d (PETSc error %d): %s\n", program, rank, (int)ierr, LastPetscError(ierr).c_str());
-  MPI_Abort(comm, 2);
+  // The other ranks may wait in a collective call that this one never reaches: only an abort ends them.
+  // Alone, this rank finalizes and exits like an input error, without Open MPI's abort banner.
+  PetscMPIInt size;
+  MPI_Comm_size(comm, &size);
+  if (size > 1) MPI_Abort(comm, 2);
   return 2;
 }
 } // namespace signorini

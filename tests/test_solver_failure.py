@@ -21,6 +21,17 @@ for what, args, reason in cases:
                 "%s, %d rank(s): one-line message %r" % (what, ranks, lines))
         c.check(summary is None, "%s, %d rank(s): no summary written" % (what, ranks))
 
+# A PETSc error inside the solve (-ksp_type minres cannot measure the unpreconditioned residual the solve
+# tests): exit status 2 with one line per rank. One rank finalizes without Open MPI's abort banner; several
+# abort, since the others may wait in a collective call.
+for ranks in [1, 2]:
+    rc, out, err, summary = run(scene("paper-5.1") + ["-box_faces", "8", "-ksp_type", "minres"], ranks=ranks, check=False)
+    ours = [l for l in err.splitlines() if l.startswith("signorini: error on rank")]
+    c.check(rc == 2 and summary is None and len(ours) == ranks and all("minres" in l for l in ours),
+            "PETSc error, %d rank(s): exit status %d, one line per rank naming the cause %r" % (ranks, rc, ours))
+    if ranks == 1:
+        c.check(not [l for l in err.splitlines() if l.strip() and l not in ours], "PETSc error, 1 rank: nothing else on stderr %r" % err[-300:])
+
 # Tolerances no double-precision solve reaches: the default path (nested iteration, multigrid) and a
 # single mesh (BoomerAMG), each element. Before the floor test these ran 200 Newton steps and ended with
 # DIVERGED_MAX_IT and a hint about kappa jumps.
