@@ -7,8 +7,7 @@ namespace signorini {
 PetscErrorCode StallGuard::Destroy()
 {
   PetscFunctionBeginUser;
-  PetscCall(ISDestroy(&before[0]));
-  PetscCall(ISDestroy(&before[1]));
+  PetscCall(ISDestroy(&reference));
   if (innerDestroy) PetscCall(innerDestroy(innerCtx));
   innerDestroy = nullptr;
   PetscFunctionReturn(0);
@@ -16,39 +15,47 @@ PetscErrorCode StallGuard::Destroy()
 
 static PetscErrorCode StallTest(SNES snes, PetscInt it, PetscReal xnorm, PetscReal snorm, PetscReal fnorm, SNESConvergedReason *reason, void *ctx)
 {
-  auto *g = static_cast<StallGuard *>(ctx);
-  Vec   x, F;
-  IS    active;
-  PetscFunctionBeginUser;
-  PetscCall(g->inner(snes, it, xnorm, snorm, fnorm, reason, g->innerCtx));
-  if (*reason != SNES_CONVERGED_ITERATING) PetscFunctionReturn(0);
-  PetscCall(SNESGetSolution(snes, &x));
-  PetscCall(SNESGetFunction(snes, &F, NULL, NULL));
-  PetscCall(SNESVIGetActiveSetIS(snes, x, F, &active)); // the set the next step will use
-  PetscBool same = PETSC_FALSE, same2 = PETSC_FALSE;
-  if (g->before[0] && g->before[1]) {
-    PetscCall(ISEqualUnsorted(active, g->before[0], &same));
-    PetscCall(ISEqualUnsorted(g->before[0], g->before[1], &same2));
-  }
+  auto              *g = static_cast<StallGuard *>(ctx);
   KSP                ksp;
   KSPConvergedReason kspReason;
   KSPNormType        normType;
   PetscReal          kspNorm;
+  PetscFunctionBeginUser;
+  PetscCall(g->inner(snes, it, xnorm, snorm, fnorm, reason, g->innerCtx));
+  if (*reason != SNES_CONVERGED_ITERATING) PetscFunctionReturn(0);
   PetscCall(SNESGetKSP(snes, &ksp));
   PetscCall(KSPGetConvergedReason(ksp, &kspReason));
   PetscCall(KSPGetNormType(ksp, &normType));
   PetscCall(KSPGetResidualNorm(ksp, &kspNorm));
-  const bool flat = it > 0 && same && same2 && kspReason > 0 && normType == KSP_NORM_UNPRECONDITIONED && fnorm > StallGuard::kGap * kspNorm && fnorm > 0.5 * g->lastNorm;
-  g->stalled      = flat ? g->stalled + 1 : 0;
-  g->floor        = g->stalled == 1 ? fnorm : PetscMin(g->floor, fnorm);
+  // The norms first: in a solve that still converges no step passes them, and no active set is computed.
+  const bool flat = it > 0 && kspReason > 0 && normType == KSP_NORM_UNPRECONDITIONED && fnorm > StallGuard::kGap * kspNorm && fnorm > 0.5 * g->lastNorm;
+  g->lastNorm     = fnorm;
+  if (!flat) {
+    g->stalled = 0;
+    PetscCall(ISDestroy(&g->reference));
+    PetscFunctionReturn(0);
+  }
+  Vec       x, F;
+  IS        active;
+  PetscBool same = PETSC_FALSE;
+  PetscCall(SNESGetSolution(snes, &x));
+  PetscCall(SNESGetFunction(snes, &F, NULL, NULL));
+  PetscCall(SNESVIGetActiveSetIS(snes, x, F, &active)); // the set the next step will use
+  if (g->reference) PetscCall(ISEqualUnsorted(active, g->reference, &same));
+  if (same) { // this step started from the reference set and ended with it
+    PetscCall(ISDestroy(&active));
+    g->stalled++;
+    g->floor = PetscMin(g->floor, fnorm);
+  } else { // the first flat step of a run: its set is the reference of the next ones
+    PetscCall(ISDestroy(&g->reference));
+    g->reference = active;
+    g->stalled   = 0;
+    g->floor     = fnorm;
+  }
   if (g->stalled >= StallGuard::kStalledSteps) {
     *reason    = SNES_DIVERGED_LOCAL_MIN; // PETSc 3.18 has no reason for a stall; stopped says which
     g->stopped = true;
   }
-  PetscCall(ISDestroy(&g->before[1]));
-  g->before[1] = g->before[0];
-  g->before[0] = active;
-  g->lastNorm  = fnorm;
   PetscFunctionReturn(0);
 }
 

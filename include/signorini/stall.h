@@ -3,14 +3,14 @@
 // message naming the floor, not after -snes_max_it steps with DIVERGED_MAX_IT.
 //
 // Why it cannot stop a solve that still converges: the problem is linear on the inactive set, so after a
-// reduced-space step taken on the same active set as the step before (the set before it, the one it used
-// and the one after it all equal), the new residual on the inactive set is, in exact arithmetic, the
-// final residual of the step's linear solve (the KSP's unpreconditioned norm), however loosely that solve
-// stopped. A step whose new ||F|| exceeds that linear residual kGap times and is more than half the
-// ||F|| before has met the floor: the residual computed afresh carries round-off that the linear
-// solver's recursive one does not. kStalledSteps such steps in a row stop the solve (the floor
-// fluctuates, so a target at the floor still gets a few tries). Where the active set still moves, or the
-// KSP measures another norm, nothing is judged.
+// reduced-space step that starts and ends with the same active set, the new residual on the inactive set
+// is, in exact arithmetic, the final residual of the step's linear solve (the KSP's unpreconditioned
+// norm), however loosely that solve stopped. A step whose new ||F|| exceeds that linear residual kGap
+// times and is more than half the ||F|| before is flat: the residual computed afresh carries round-off
+// that the linear solver's recursive one does not. The first flat step's active set is the reference;
+// kStalledSteps further flat steps in a row that end with it (so each started from it too) stop the
+// solve (the floor fluctuates, so a target at the floor still gets a few tries). The active set is
+// computed only for flat steps; where it moves, or the KSP measures another norm, nothing is judged.
 #pragma once
 
 #include <petscsnes.h>
@@ -24,11 +24,11 @@ struct StallGuard {
   PetscErrorCode (*inner)(SNES, PetscInt, PetscReal, PetscReal, PetscReal, SNESConvergedReason *, void *) = nullptr;
   void          *innerCtx = nullptr;
   PetscErrorCode (*innerDestroy)(void *) = nullptr;
-  IS             before[2] = {nullptr, nullptr}; // the active sets of the two tests before, newest first
+  IS             reference = nullptr; // the active set after the first flat step of the current run
   PetscReal      lastNorm  = 0;
-  PetscInt       stalled   = 0;     // steps in a row on the floor
+  PetscInt       stalled   = 0;     // flat steps in a row on the reference set
   bool           stopped   = false; // the solve ended on the floor
-  PetscReal      floor     = 0;     // the least ||F|| of those steps
+  PetscReal      floor     = 0;     // the least ||F|| of the run
   PetscErrorCode Destroy();
 };
 
