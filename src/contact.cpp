@@ -349,8 +349,12 @@ static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &
   PetscBool rsls; // the energies need F = A u - b and CG on blocks of A: the reduced-space solver's
   PetscCall(PetscObjectTypeCompare((PetscObject)snes, SNESVINEWTONRSLS, &rsls));
   if (rsls && (opts.energyError > 0 || opts.startError > 0)) PetscCall(EnergyStopInstall(snes, sys, opts, scale, energyStop));
+  // At the floor with the default tolerances (stiff rows: kappa jumps, stretched cells) the active set has
+  // settled and every further step would only repeat the last: that is the solution, and the KKT checks
+  // after the solve are its test. A tolerance the user tightened below the floor is the user's to loosen.
+  const bool tightened = target < r.defaultTarget * (1 - 1e-12);
   StallGuard stall; // last: it wraps the test in place
-  if (rsls) PetscCall(StallGuardInstall(snes, stall));
+  if (rsls) PetscCall(StallGuardInstall(snes, !tightened, stall));
   // Inexact Newton: the problem is linear on the inactive set, so once the active set is right, one step
   // whose linear residual is below the target ends the solve; solving further would be wasted. The KSP
   // measures the true (unpreconditioned) residual, which is what the SNES test sees after the step.
@@ -379,14 +383,9 @@ static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &
   PetscCall(MatDestroy(&J));
   PetscCall(VecDestroy(&upper));
   PetscCall(VecDestroy(&F));
-  // At the floor with the default tolerances (stiff rows: kappa jumps, stretched cells) the active set has
-  // settled and every further step would only repeat the last: that is the solution, and the KKT checks
-  // after the solve are its test. A tolerance the user tightened below the floor is the user's to loosen.
-  const bool tightened = target < r.defaultTarget * (1 - 1e-12);
   if (stall.stopped && !tightened) {
     r.reason    = "CONVERGED_ROUNDOFF_FLOOR";
     r.stoppedBy = "roundoff_floor";
-    reason      = SNES_CONVERGED_ITS;
   }
   if (stall.stopped && tightened) {
     // the least tolerances worth asking for: ten times the floor, up to a power of ten

@@ -53,15 +53,17 @@ static PetscErrorCode StallTest(SNES snes, PetscInt it, PetscReal xnorm, PetscRe
     g->floor     = fnorm;
   }
   if (g->stalled >= StallGuard::kStalledSteps) {
-    *reason    = SNES_DIVERGED_LOCAL_MIN; // PETSc 3.18 has no reason for a stall; stopped says which
+    // PETSc 3.18 has no reason for a stall; stopped says which, and -snes_converged_reason the outcome
+    *reason    = g->accept ? SNES_CONVERGED_ITS : SNES_DIVERGED_LOCAL_MIN;
     g->stopped = true;
   }
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode StallGuardInstall(SNES snes, StallGuard &g)
+PetscErrorCode StallGuardInstall(SNES snes, bool accept, StallGuard &g)
 {
   PetscFunctionBeginUser;
+  g.accept = accept;
   if (snes->ops->converged == SNESConvergedSkip) PetscFunctionReturn(0); // the user asked for -snes_max_it steps
   g.inner        = snes->ops->converged;
   g.innerCtx     = snes->cnvP;

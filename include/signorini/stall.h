@@ -28,12 +28,15 @@ struct StallGuard {
   PetscReal      lastNorm  = 0;
   PetscInt       stalled   = 0;     // flat steps in a row on the reference set
   bool           stopped   = false; // the solve ended on the floor
+  bool           accept    = false; // as converged (else diverged)
   PetscReal      floor     = 0;     // the least ||F|| of the run
   PetscErrorCode Destroy();
 };
 
 // Wraps snes's current convergence test (install it after every other one), unless that is
-// -snes_convergence_test skip. A SNESVINEWTONRSLS only. Collective.
-PetscErrorCode StallGuardInstall(SNES snes, StallGuard &g);
+// -snes_convergence_test skip; accept: a stop at the floor counts as converged (the caller's target is the
+// default one, which stiff rows may put below the floor), else as diverged. A SNESVINEWTONRSLS only.
+// Collective.
+PetscErrorCode StallGuardInstall(SNES snes, bool accept, StallGuard &g);
 
 } // namespace signorini
