@@ -7,7 +7,9 @@ time and status, printed as a table and written as CSV (default results/stabilit
 What each row checks (status "ok", or "FAIL" with the reason in the notes):
   * every single solve: it converged; the KKT residuals relative to the size of u and of the contact pressure
     (min(u - psi) / max|u|, -min pressure / max pressure, max |(u - psi) pressure| / (max gap max pressure))
-    and the stationarity off Gamma_C (relative to the load, as the executable reports it) are below 1e-6;
+    and the stationarity off Gamma_C (relative to the load, as the executable reports it) are below 1e-6
+    (the stationarity: or below 10 times the direct solve's, where that one is compared and its own lies
+    above 1e-6, the round-off level of a kappa contrast of 1e9);
   * high contrast, stretched cells, varying psi: u equals a direct solve of the same discrete problem (MUMPS LU,
     30 full Newton steps) to 1e-6 max|u|, so a solver that stops early is caught even when the KKT residuals
     of the stiff rows hide it; manufactured scenes also show the error against the exact solution;
@@ -178,7 +180,6 @@ def row_from(name, variant, element, solver, result):
     if "error" in s:
         r["l2"], r["h1"], r["energy_error"] = s["error"]["l2"], s["error"]["h1"], s["error"]["energy"]
     require(r, r["kkt"] <= TOL_KKT, "KKT residual %.1e > %.0e" % (r["kkt"], TOL_KKT))
-    require(r, r["stationarity"] <= TOL_KKT, "stationarity %.1e > %.0e" % (r["stationarity"], TOL_KKT))
     if "estimate" in s:
         r["eta"] = s["estimate"]["eta"]
         if "error" in s:
@@ -242,21 +243,28 @@ class Report:
         result = self.run.solve(args)
         row = row_from(name, variant, element, solver, result)
         check(row, result, element)
+        if "stationarity" in row:
+            # Where the direct solve of the same problem (direct_check) cannot reach TOL_KKT either, its own
+            # stationarity is the round-off level (kappa contrast 1e9: about 2e-4), and 10 times it the bound.
+            bound = max(TOL_KKT, 10 * row.get("direct_stationarity", 0))
+            require(row, row["stationarity"] <= bound, "stationarity %.1e > %.1e" % (row["stationarity"], bound))
         return self.add(row)
 
 
 def direct_check(runner, args):
     """check(row, result, element) comparing u with the direct solve of the same discrete problem."""
-    cache = {}
+    cache, stationarity = {}, {}
 
     def check(row, result, element):
         if element not in cache:
             ref = runner.solve(args + ["-space", element] + DIRECT)
             cache[element] = ref["u"] if ref["rc"] == 0 and kkt_residual(ref["summary"], ref["u"]) <= TOL_KKT else None
+            stationarity[element] = ref["summary"]["stationarity"] if cache[element] is not None else 0
             if ref["rc"] != 0:
                 row["notes"].append("direct solve failed: " + ref["message"])
         if result["u"] is not None:
             compare(row, "direct", rel_diff(result["u"], cache[element]), TOL_DIRECT)
+        row["direct_stationarity"] = stationarity[element]
     return check
 
 
