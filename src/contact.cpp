@@ -6,6 +6,8 @@
 #include "signorini/stages.h"
 #include "signorini/stall.h"
 
+#include <petsc/private/kspimpl.h> // the norms a KSP type can report, see CheckKSPNorm
+
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -148,6 +150,22 @@ static PetscErrorCode ConfigureKSP(KSP ksp)
   PetscFunctionReturn(0);
 }
 
+// A -ksp_type that cannot report the residual norm the solve stops on (minres: only the preconditioned one)
+// failed inside the first solve, as a PETSc error on every rank; it is an input, and named as one. The
+// test is PETSc's own choice of norm and side at set-up (KSPSetUpNorms_Private), which is not exported.
+static PetscErrorCode CheckKSPNorm(KSP ksp)
+{
+  const KSPNormType norm = ksp->normtype; // as set; KSPGetNormType would run that test, erring
+  const PCSide      side = ksp->pc_side;
+  KSPType           type;
+  PetscFunctionBeginUser;
+  PetscCall(KSPGetType(ksp, &type));
+  bool ok = norm == KSP_NORM_DEFAULT;
+  for (PetscInt j = 0; j < PC_SIDE_MAX && !ok; ++j) ok = (side == PC_SIDE_DEFAULT || side == j) && ksp->normsupporttable[norm][j] > 0;
+  if (!ok) SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)ksp), "option -ksp_type %s: it cannot report the %s residual norm that the solve stops on%s; use cg (the default) or a type that can, such as gmres or fgmres", type, KSPNormTypes[norm], side == PC_SIDE_DEFAULT ? "" : Format(" with -ksp_pc_side %s", PCSides[side]).c_str());
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode SolveLinear(const System &sys, Vec u, SolveResult &r)
 {
   KSP                ksp;
@@ -157,6 +175,7 @@ static PetscErrorCode SolveLinear(const System &sys, Vec u, SolveResult &r)
   PetscCall(KSPSetOperators(ksp, sys.A, sys.A));
   PetscCall(ConfigureKSP(ksp));
   PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)ksp), KSPSetFromOptions(ksp)));
+  PetscCall(CheckKSPNorm(ksp));
   PetscCall(KSPSolve(ksp, sys.b, u));
   PetscCall(KSPGetConvergedReason(ksp, &reason));
   PetscCall(KSPGetIterationNumber(ksp, &r.kspIts));
@@ -324,6 +343,7 @@ static PetscErrorCode SolveVI(const System &sys, Vec lower, Vec u, SolveResult &
   const PetscErrorCode fromOptions = SNESSetFromOptions(snes);
   if (!zeroTolSet) PetscCall(PetscOptionsClearValue(NULL, "-snes_vi_zero_tolerance"));
   PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)snes), fromOptions));
+  PetscCall(CheckKSPNorm(ksp));
   SNESType  type; // the bounds u >= psi need a VI solver; PETSc would refuse another one only inside SNESSolve
   PetscBool vi;
   PetscCall(SNESGetType(snes, &type));

@@ -11,6 +11,15 @@ cases = [
     ("KSP stopped after one iteration (no contact part)", scene("paper-5.1") + ["-box_faces", "16", "-bc_contact", "", "-ksp_max_it", "1"], "DIVERGED_ITS"),
     ("KSP inside SNESVI stopped after one iteration", scene("paper-5.1") + ["-box_faces", "16", "-ksp_max_it", "1"], "DIVERGED"),
 ]
+# A KSP type that cannot report the unpreconditioned residual the solves stop on: an input error naming it.
+kinds = [("contact", []), ("linear, no contact part", ["-bc_contact", ""])]
+for (kind, extra), (option, words) in [(k, o) for k in kinds for o in [(["-ksp_type", "minres"], "-ksp_type minres"),
+                                                                      (["-ksp_type", "gmres", "-ksp_pc_side", "left"], "-ksp_pc_side LEFT")]]:
+    for ranks in [1, 2]:
+        rc, out, err, summary = run(scene("paper-5.1") + ["-box_faces", "8"] + extra + option, ranks=ranks, check=False)
+        lines = [l for l in err.splitlines() if l.strip() and (ranks == 1 or l.startswith("signorini"))]
+        c.check(rc == 1 and summary is None and len(lines) == 1 and lines[0].startswith("signorini: error: option -ksp_type") and words in lines[0],
+                "%s solve, %s, %d rank(s): exit %d, one line naming the option %r" % (kind, " ".join(option), ranks, rc, lines))
 for what, args, reason in cases:
     for ranks in [1, 2]:
         rc, out, err, summary = run(args, ranks=ranks, check=False)
@@ -21,13 +30,13 @@ for what, args, reason in cases:
                 "%s, %d rank(s): one-line message %r" % (what, ranks, lines))
         c.check(summary is None, "%s, %d rank(s): no summary written" % (what, ranks))
 
-# A PETSc error inside the solve (-ksp_type minres cannot measure the unpreconditioned residual the solve
-# tests): exit status 2 with one line per rank. One rank finalizes without Open MPI's abort banner; several
-# abort, since the others may wait in a collective call.
+# A PETSc error inside the solve (-ksp_type bicg applies the transpose of the inactive-set preconditioner,
+# which has none): exit status 2 with one line per rank. One rank finalizes without Open MPI's abort
+# banner; several abort, since the others may wait in a collective call.
 for ranks in [1, 2]:
-    rc, out, err, summary = run(scene("paper-5.1") + ["-box_faces", "8", "-ksp_type", "minres"], ranks=ranks, check=False)
+    rc, out, err, summary = run(scene("paper-5.1") + ["-box_faces", "8", "-ksp_type", "bicg"], ranks=ranks, check=False)
     ours = [l for l in err.splitlines() if l.startswith("signorini: error on rank")]
-    c.check(rc == 2 and summary is None and len(ours) == ranks and all("minres" in l for l in ours),
+    c.check(rc == 2 and summary is None and len(ours) == ranks and all("applytranspose" in l for l in ours),
             "PETSc error, %d rank(s): exit status %d, one line per rank naming the cause %r" % (ranks, rc, ours))
     if ranks == 1:
         c.check(not [l for l in err.splitlines() if l.strip() and l not in ours], "PETSc error, 1 rank: nothing else on stderr %r" % err[-300:])
