@@ -203,7 +203,7 @@ PetscErrorCode CompanionSolve(const Space &space, const System &sys, const std::
   PetscCall(KSPGetPC(ksp, &pc));
   PetscCall(PCSetType(pc, PCHYPRE));
   PetscCall(PCHYPRESetType(pc, "boomeramg"));
-  PetscCall(KSPSetTolerances(ksp, kCompanionRtol, PETSC_DEFAULT, PETSC_DEFAULT, 200));
+  PetscCall(KSPSetTolerances(ksp, kCompanionRtol, PETSC_DEFAULT, kCGDivergenceTolerance, 200));
   PetscCall(KSPSetFromOptions(ksp));
   PetscCall(KSPSolve(ksp, rhs, w));
   PetscCall(KSPGetConvergedReason(ksp, &reason));

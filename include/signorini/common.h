@@ -15,6 +15,13 @@ namespace signorini {
 // ranks and makes main() abort the whole job instead of waiting in a collective that never completes.
 constexpr PetscErrorCode kInputError = PETSC_ERR_USER_INPUT;
 
+// The divergence tolerance of every CG solve here: none. CG minimizes the error in the energy norm, while
+// its residual norm may rise on the way by up to about sqrt(cond A) (1e6 and more with a kappa contrast of
+// 1e9), which PETSc's default (1e5 times the first residual) took for divergence: stiff-checkerboard
+// K = 1e9, CR, DIVERGED_DTOL in the first Newton step. A preconditioner that is not SPD shows as
+// DIVERGED_INDEFINITE_PC, a stall as the iterations running out; -ksp_divtol still sets one.
+constexpr PetscReal kCGDivergenceTolerance = 1e100;
+
 // Collective check: every rank passes its local verdict; if any rank failed, all ranks raise kInputError
 // with the message of the lowest failing rank. Use it for conditions found by rank-local work (a bad cell,
 // an expression that is NaN somewhere) so that the other ranks do not hang.
