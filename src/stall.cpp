@@ -1,15 +1,12 @@
 #include "signorini/stall.h"
 
-#include <petsc/private/snesimpl.h> // the test in place, to wrap it: PETSc 3.18 has no getter for it
-
 namespace signorini {
 
 PetscErrorCode StallGuard::Destroy()
 {
   PetscFunctionBeginUser;
   PetscCall(ISDestroy(&reference));
-  if (innerDestroy) PetscCall(innerDestroy(innerCtx));
-  innerDestroy = nullptr;
+  PetscCall(wrap.Destroy());
   PetscFunctionReturn(0);
 }
 
@@ -21,7 +18,7 @@ static PetscErrorCode StallTest(SNES snes, PetscInt it, PetscReal xnorm, PetscRe
   KSPNormType        normType;
   PetscReal          kspNorm;
   PetscFunctionBeginUser;
-  PetscCall(g->inner(snes, it, xnorm, snorm, fnorm, reason, g->innerCtx));
+  PetscCall(g->wrap.Inner(snes, it, xnorm, snorm, fnorm, reason));
   if (*reason != SNES_CONVERGED_ITERATING) PetscFunctionReturn(0);
   PetscCall(SNESGetKSP(snes, &ksp));
   PetscCall(KSPGetConvergedReason(ksp, &kspReason));
@@ -64,12 +61,7 @@ PetscErrorCode StallGuardInstall(SNES snes, bool accept, StallGuard &g)
 {
   PetscFunctionBeginUser;
   g.accept = accept;
-  if (snes->ops->converged == SNESConvergedSkip) PetscFunctionReturn(0); // the user asked for -snes_max_it steps
-  g.inner        = snes->ops->converged;
-  g.innerCtx     = snes->cnvP;
-  g.innerDestroy = snes->ops->convergeddestroy;
-  snes->ops->convergeddestroy = nullptr; // now the guard's to destroy
-  PetscCall(SNESSetConvergenceTest(snes, StallTest, &g, NULL));
+  PetscCall(g.wrap.Wrap(snes, StallTest, &g));
   PetscFunctionReturn(0);
 }
 

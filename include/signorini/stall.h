@@ -13,17 +13,14 @@
 // computed only for flat steps; where it moves, or the KSP measures another norm, nothing is judged.
 #pragma once
 
-#include <petscsnes.h>
+#include "signorini/snestest.h"
 
 namespace signorini {
 
 struct StallGuard {
   static constexpr PetscInt  kStalledSteps = 5;
   static constexpr PetscReal kGap          = 2;
-  // the test it wraps (the SNES's own, or the energy test of energystop.h)
-  PetscErrorCode (*inner)(SNES, PetscInt, PetscReal, PetscReal, PetscReal, SNESConvergedReason *, void *) = nullptr;
-  void          *innerCtx = nullptr;
-  PetscErrorCode (*innerDestroy)(void *) = nullptr;
+  WrappedTest    wrap; // the test it wraps (the SNES's own, or the KKT or energy test)
   IS             reference = nullptr; // the active set after the first flat step of the current run
   PetscReal      lastNorm  = 0;
   PetscInt       stalled   = 0;     // flat steps in a row on the reference set
