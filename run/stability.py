@@ -284,12 +284,11 @@ def stretched(rep):
     # Adaptive refinement keeps the cells' angles (bisect.cpp): the error falls and the index stays at its
     # uniform value at every step (Rivara's closure cut the long edges and made angles near 180 degrees).
     # 3D: 3 steps. The preconditioners are not robust to the aspect ratio: the KSP iterations per Newton step
-    # double with every refinement, uniform or adaptive (uniform -refine 1, 2, 3: 33, 74, 142), and the
-    # fourth adaptive step of CR (about 400 k DOFs) exceeds the preset's 1000.
+    # double with every refinement, uniform or adaptive (uniform -refine 1, 2, 3: 33, 74, 142).
     for name, faces, steps in [("stiff-stretched-2d", "16,16", 4), ("stiff-stretched-3d", "4,4,4", 3)]:
         for element in ELEMENTS:
             adaptive_row(rep, name, "aspect 1e3 adaptive %d steps" % steps, element,
-                         scene(name) + ["-box_faces", faces, "-adapt_steps", str(steps)] + preset("high-contrast"), "high-contrast")
+                         scene(name) + ["-box_faces", faces, "-adapt_steps", str(steps)])
 
 
 def psi(rep):
@@ -435,13 +434,13 @@ def adaptive_row(rep, name, variant, element, args, solver="default"):
 def contrast_estimate(rep):
     """The estimate across the kappa jump, on the scenes with an exact solution: the efficiency index at every
     level of a uniform study (N = 8, 16, 32) and at every step of an adaptive run, for K = 1e-6 and 1e6, with the
-    high-contrast preset (the default solver fails on some of these, see the contrast rows)."""
+    default solver."""
     for name in ["stiff-layers", "stiff-layers-across"]:
         for K in [1e-6, 1e6]:
-            args = scene(name, ("1e6", "%g" % K)) + ["-box_faces", "8"] + preset("high-contrast")
-            study_rows(rep, name, "K=%g uniform N=8..32" % K, args + ["-study_levels", "3"], solver="high-contrast")
+            args = scene(name, ("1e6", "%g" % K)) + ["-box_faces", "8"]
+            study_rows(rep, name, "K=%g uniform N=8..32" % K, args + ["-study_levels", "3"])
             for element in ELEMENTS:
-                adaptive_row(rep, name, "K=%g adaptive 12 steps" % K, element, args + ["-adapt_steps", "12"], "high-contrast")
+                adaptive_row(rep, name, "K=%g adaptive 12 steps" % K, element, args + ["-adapt_steps", "12"])
 
 
 def critical_points(rep, full):

@@ -61,7 +61,7 @@ PetscErrorCode KKTHint(const Space &space, const System &sys, const SolveResult 
 {
   MPI_Comm comm = PetscObjectComm((PetscObject)space.dm);
   PetscFunctionBeginUser;
-  if (!r.vi || !(r.kktRelative > tolerance)) PetscFunctionReturn(0);
+  if (!r.vi || !(tolerance > 0) || !(r.kktRelative > tolerance)) PetscFunctionReturn(0);
   const std::string head = Format("signorini: warning: the discrete KKT conditions on Gamma_C hold only to %.1e relative (-kkt_tolerance %g)", (double)r.kktRelative, (double)tolerance);
   // The bounds are exact up to round-off in A u - b; a little room keeps a residual at the bound in (a)/(b).
   const PetscReal reached = r.kktReached * (1 + 1e-6) + 1e-14;
@@ -78,7 +78,8 @@ PetscErrorCode KKTHint(const Space &space, const System &sys, const SolveResult 
   PetscReal contrast, aspect;
   PetscCall(MeasureStiffness(space, sys, &contrast, &aspect));
   if (contrast >= kStiffContrast || aspect >= kStiffAspect) {
-    PetscCall(PetscPrintf(comm, "%s: stiff rows (kappa max/min %.3g, cell aspect ratio up to %.3g) dominate the residual norm that SNESVI tests, so it stopped before the active set settled (at %.1e, which permits KKT residuals up to %.1e); add -options_file petsc-options/solvers/high-contrast\n", head.c_str(), (double)contrast, (double)aspect, (double)r.residual, (double)r.kktReached));
+    if (r.stoppedBy == "roundoff_floor") PetscCall(PetscPrintf(comm, "%s: the solve ended at the round-off floor of its residual (%.1e, %d Newton steps after SNESVI's residual test passed), which stiff rows (kappa max/min %.3g, cell aspect ratio up to %.3g) put this high: that is what double precision gives here\n", head.c_str(), (double)r.residual, (int)r.kktSteps, (double)contrast, (double)aspect));
+    else PetscCall(PetscPrintf(comm, "%s: stiff rows (kappa max/min %.3g, cell aspect ratio up to %.3g) dominate the residual norm that SNESVI tests, and the solve ended (%s, at %.1e, %d Newton steps after that test passed) before its KKT checks passed; try -options_file petsc-options/solvers/high-contrast\n", head.c_str(), (double)contrast, (double)aspect, r.reason.c_str(), (double)r.residual, (int)r.kktSteps));
   }
   // Otherwise: what the default stopping test permits on this mesh (see kkthint.h).
   PetscFunctionReturn(0);

@@ -81,7 +81,9 @@ PetscErrorCode ReportPrint(MPI_Comm comm, const Report &r)
   PetscFunctionBeginUser;
   o << Format("scene %s: element %s, %dD, mesh %s, refine %d: %d cells, %d DOFs (%d Dirichlet, %d contact), %d rank(s)\n", r.scene.c_str(), r.element.c_str(), (int)r.dim, r.mesh.c_str(), (int)r.refine, (int)r.cells, (int)r.dofs, (int)r.dirichletDofs, (int)r.contactDofs, (int)r.ranks);
   if (r.solve.vi) {
-    o << Format("  solve: SNESVI %s, %d Newton / %d KSP iterations\n", r.solve.reason.c_str(), (int)r.solve.newtonIts, (int)r.solve.kspIts);
+    o << Format("  solve: SNESVI %s, %d Newton / %d KSP iterations", r.solve.reason.c_str(), (int)r.solve.newtonIts, (int)r.solve.kspIts);
+    if (r.solve.kktSteps > 0) o << Format(" (%d of them after the residual test passed, for the KKT checks)", (int)r.solve.kktSteps);
+    o << "\n";
     if (r.chosenForAspect) o << Format("  preconditioner of the inactive-set blocks: BoomerAMG alone, for cells stretched up to aspect ratio %.3g (the geometric multigrid's smoother does not smooth across them; -vi_pc_type mg keeps it)\n", (double)r.aspect);
     if (r.solve.amg.setups + r.solve.amg.reuses > 0) o << Format("  preconditioner of the inactive-set blocks (%s) set up %d times, re-used in %d Newton steps\n", r.preconditioner.c_str(), (int)r.solve.amg.setups, (int)r.solve.amg.reuses);
     if (!r.solve.levels.empty()) o << Format("  nested iteration, -solve_to %s\n", r.solve.stopping.c_str());
@@ -169,7 +171,7 @@ PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string
   o << "],\n  \"load_quadrature\": " << Str(r.loadRule) << ",\n";
   o << "  \"solver\": {\"type\": " << Str(r.solve.vi ? "snesvi" : "ksp") << ", \"converged_reason\": " << Str(r.solve.reason) << ", \"newton_iterations\": " << r.solve.newtonIts << ", \"ksp_iterations\": " << r.solve.kspIts;
   o << ", \"solve_seconds\": " << Num(r.solve.solveSeconds) << ", \"nested\": " << (r.solve.levels.empty() ? "false" : "true");
-  if (r.solve.vi) o << ", \"amg_setups\": " << r.solve.amg.setups << ", \"amg_reuses\": " << r.solve.amg.reuses << ", \"preconditioner\": " << Str(r.preconditioner) << ", \"max_aspect_ratio\": " << Num(r.aspect);
+  if (r.solve.vi) o << ", \"amg_setups\": " << r.solve.amg.setups << ", \"amg_reuses\": " << r.solve.amg.reuses << ", \"kkt_steps\": " << r.solve.kktSteps << ", \"preconditioner\": " << Str(r.preconditioner) << ", \"max_aspect_ratio\": " << Num(r.aspect);
   if (!r.solve.levels.empty()) {
     PetscInt newton = 0, ksp = 0;
     o << ", \"levels\": [";

@@ -39,6 +39,7 @@ struct SolveResult {
   PetscReal   kktReached = 0, kktDefault = 0;
   std::string loosened; // the stopping options the user set looser than the defaults ("-snes_rtol 0.001")
   PetscInt    scaleExponent = 0; // the solve worked on u / 2^scaleExponent (DataScale::u, datascale.h)
+  PetscInt    kktSteps  = 0; // Newton steps beyond the residual test, until the KKT checks passed (kktstop.h)
   std::string stoppedBy = "full"; // which test ended the solve: full, start_error, energy_error (SolveOptions) or roundoff_floor (stall.h)
   PetscReal stationarity = 0; // max |r| over DOFs that are neither Dirichlet nor contact, relative to max |load|
   PetscReal energy = 0;
@@ -61,7 +62,7 @@ struct SolveResult {
 struct SolveOptions {
   bool      initialGuess  = false; // u holds an initial guess (e.g. prolongated from a coarser level)
   bool      compareLinear = false; // -compare_linear: also time one linear solve of A u = b
-  PetscReal kktTolerance  = 1e-6;  // -kkt_tolerance: a larger relative KKT residual is reported as a warning
+  PetscReal kktTolerance  = 1e-6;  // -kkt_tolerance: the full test also asks the KKT checks for this (kktstop.h); above it, a warning
   AmgReuseOptions amgReuse;
   // Where the solve may stop before the full test (nested.h, -solve_to); 0: not at all.
   // Each once the algebraic error |||u - u_h||| is estimated below (contact.cpp, EnergyStop):
@@ -82,6 +83,8 @@ PetscErrorCode WriteContactProfile(const Space &space, const Problem &problem, c
 inline PetscReal ActiveTolerance(PetscReal maxAbsU) { return 1e-10 * maxAbsU; }
 // psi at contact DOFs and -infinity elsewhere (a global vector of the space): the lower bound of K_h.
 PetscErrorCode ContactLowerBound(const Space &space, const Problem &problem, Vec lower);
+// The boundary measure each contact DOF carries (turns a reaction into a pressure), 0 elsewhere.
+PetscErrorCode ContactMeasure(const Space &space, const Problem &problem, Vec measure);
 // Makes u admissible: u = u_D (sys.uD) on the Dirichlet DOFs (owned indices), u = max(u, lower) elsewhere
 // (lower may be null: no contact part).
 PetscErrorCode ProjectOntoConstraints(const System &sys, const std::vector<PetscInt> &dirichletOwned, Vec lower, Vec u);
@@ -95,6 +98,11 @@ PetscErrorCode ProjectOntoConstraints(const System &sys, const std::vector<Petsc
 // the size of the data, and PETSc's absolute options (-snes_atol, -ksp_atol, -snes_vi_zero_tolerance,
 // -snes_linesearch_maxstep) are relative to it. Pushes the Solve stage.
 PetscErrorCode Solve(const Space &space, const Problem &problem, const System &sys, Vec u, SolveResult &result, const SolveOptions &opts = SolveOptions());
+// The KKT conditions on Gamma_C and the stationarity on the free DOFs of u (SolveResult's primal, dual,
+// complementarity, kktRelative, stationarity, ...) from its residual res = A u - b, with u, res, b and
+// lower in one scale and the load in it times loadFactor (the solver's units, datascale.h: their ratios
+// are the same in any). lower and measure (ContactMeasure) null: the stationarity only. Collective.
+PetscErrorCode MeasureKKTFromResidual(const Space &space, const System &sys, Vec u, Vec res, PetscReal loadFactor, Vec lower, Vec measure, SolveResult &r);
 // For the output, global vectors of the space that are 0 off Gamma_C: psi, the contact pressure
 // (A u - b) / measure (as in the KKT check), and the active set (1 where u - psi is at most ActiveTolerance(max|u|),
 // the rule of SolveResult::active).

@@ -4,8 +4,9 @@
 //      residual test at all) are looser than the defaults and let the KKT residual through, where the
 //      defaults would not have: tighten them;
 //  (b) stiff rows: a large kappa contrast between cells or very stretched cells, so that the residual norm
-//      SNESVI tests is dominated by the stiff rows and lets a wrong active set through (the KKT residual
-//      is within what the residual reached permits): the high-contrast preset;
+//      SNESVI tests is dominated by the stiff rows, and the steps the KKT checks add (kktstop.h) ended at
+//      their limit (then: the high-contrast preset) or at the residual's round-off floor (then: nothing
+//      to do, double precision gives no more);
 //  (c) a KKT residual larger than the residual reached permits: what was measured, and what to try.
 // Otherwise the KKT residual is what the default stopping test permits on this mesh (the pressure divides
 // the reaction by a boundary measure of about h^(d-1), so the permitted residual grows under refinement):
