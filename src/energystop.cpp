@@ -8,6 +8,7 @@ PetscErrorCode EnergyStop::Destroy()
 {
   PetscFunctionBeginUser;
   PetscCall(VecDestroy(&Ax));
+  PetscCall(VecDestroy(&x));
   if (kspDefault) PetscCall(KSPConvergedDefaultDestroy(kspDefault));
   kspDefault = nullptr;
   PetscFunctionReturn(0);
@@ -20,15 +21,21 @@ static PetscErrorCode EnergyKSPTest(KSP ksp, PetscInt it, PetscReal rnorm, KSPCo
   Mat         A;
   Vec         x, b, with[2];
   PetscScalar dots[2];
+  PCSide      side;
   PetscFunctionBeginUser;
   PetscCall(KSPConvergedDefault(ksp, it, rnorm, reason, e->kspDefault));
-  PetscCall(KSPBuildSolution(ksp, NULL, &x));
   PetscCall(KSPGetRhs(ksp, &b));
   PetscCall(KSPGetOperators(ksp, &A, NULL));
   if (it == 0) { // every Newton step has its own block (layout)
     PetscCall(VecDestroy(&e->Ax));
-    PetscCall(VecDuplicate(x, &e->Ax));
+    PetscCall(VecDestroy(&e->x));
+    PetscCall(VecDuplicate(b, &e->Ax));
+    PetscCall(VecDuplicate(b, &e->x));
   }
+  // With a right preconditioner (bcgs, tfqmr, ...) the iterate is built into a vector of ours; with a left
+  // one (cg) it is the KSP's own, and no copy is made.
+  PetscCall(KSPGetPCSide(ksp, &side));
+  PetscCall(KSPBuildSolution(ksp, side == PC_RIGHT ? e->x : NULL, &x));
   PetscCall(MatMult(A, x, e->Ax));
   with[0] = e->Ax;
   with[1] = b;

@@ -24,8 +24,21 @@ static PetscErrorCode StallTest(SNES snes, PetscInt it, PetscReal xnorm, PetscRe
   PetscCall(KSPGetConvergedReason(ksp, &kspReason));
   PetscCall(KSPGetNormType(ksp, &normType));
   PetscCall(KSPGetResidualNorm(ksp, &kspNorm));
+  const bool candidate = it > 0 && kspReason > 0 && normType == KSP_NORM_UNPRECONDITIONED && fnorm > 0.5 * g->lastNorm;
+  if (candidate && kspNorm == 0) {
+    // preonly reports no residual of its own: measured here (a direct solve leaves one far below ||F||,
+    // a single V-cycle one near it)
+    Vec b, work, res, r;
+    PetscCall(KSPGetRhs(ksp, &b));
+    PetscCall(VecDuplicate(b, &work));
+    PetscCall(VecDuplicate(b, &res));
+    PetscCall(KSPBuildResidual(ksp, work, res, &r));
+    PetscCall(VecNorm(r, NORM_2, &kspNorm));
+    PetscCall(VecDestroy(&work));
+    PetscCall(VecDestroy(&res));
+  }
   // The norms first: in a solve that still converges no step passes them, and no active set is computed.
-  const bool flat = it > 0 && kspReason > 0 && normType == KSP_NORM_UNPRECONDITIONED && fnorm > StallGuard::kGap * kspNorm && fnorm > 0.5 * g->lastNorm;
+  const bool flat = candidate && fnorm > StallGuard::kGap * kspNorm;
   g->lastNorm     = fnorm;
   if (!flat) {
     g->stalled = 0;

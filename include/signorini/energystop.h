@@ -28,7 +28,8 @@ struct EnergyStop {
   PetscReal relative = 0;       // startError: decrease = relative^2 (J_0 - J_1), set after the first step
   PetscReal cg = 0, newton = 0; // the energy of the previous CG iterate and of the previous Newton iterate
   bool      stopped  = false;   // the Newton iteration ended by the energy test
-  Vec       Ax       = nullptr; // work vector of the block's size
+  Vec       Ax       = nullptr; // work vectors of the block's size
+  Vec       x        = nullptr;
   void     *kspDefault = nullptr;
   PetscErrorCode Destroy();
 };
