@@ -93,7 +93,9 @@ PetscErrorCode ReportPrint(MPI_Comm comm, const Report &r)
     }
     o << Format("  KKT on Gamma_C: min(u-psi) %.3e, min pressure %.3e, max |(u-psi) pressure| %.3e (worst relative %.1e), active %d of %d\n", (double)r.solve.primal, (double)r.solve.dual, (double)r.solve.complementarity, (double)r.solve.kktRelative, (int)r.solve.active, (int)r.contactDofs);
   } else {
-    o << Format("  solve: KSP %s, %d iterations (no contact part: linear solve)\n", r.solve.reason.c_str(), (int)r.solve.kspIts);
+    o << Format("  solve: KSP %s, %d iterations (no contact part: linear solve", r.solve.reason.c_str(), (int)r.solve.kspIts);
+    if (r.solve.kktSteps > 0) o << Format("; %d more solve%s from where it stopped, for the stationarity check", (int)r.solve.kktSteps, r.solve.kktSteps > 1 ? "s" : "");
+    o << ")\n";
   }
   if (r.solve.linearSeconds >= 0) o << Format("  solve %.3f s, one linear CG + BoomerAMG solve of the same A, b %.3f s (%d iterations): ratio %.2f\n", r.solve.solveSeconds, r.solve.linearSeconds, (int)r.solve.linearKspIts, r.solve.solveSeconds / r.solve.linearSeconds);
   o << Format("  stationarity max|r| / max|load| on free DOFs %.3e, energy J(u_h) = %.12e\n", (double)r.solve.stationarity, (double)r.solve.energy);
@@ -170,8 +172,8 @@ PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string
   for (size_t i = 0; i < r.cellsPerRank.size(); ++i) o << (i ? ", " : "") << r.cellsPerRank[i];
   o << "],\n  \"load_quadrature\": " << Str(r.loadRule) << ",\n";
   o << "  \"solver\": {\"type\": " << Str(r.solve.vi ? "snesvi" : "ksp") << ", \"converged_reason\": " << Str(r.solve.reason) << ", \"newton_iterations\": " << r.solve.newtonIts << ", \"ksp_iterations\": " << r.solve.kspIts;
-  o << ", \"solve_seconds\": " << Num(r.solve.solveSeconds) << ", \"nested\": " << (r.solve.levels.empty() ? "false" : "true");
-  if (r.solve.vi) o << ", \"amg_setups\": " << r.solve.amg.setups << ", \"amg_reuses\": " << r.solve.amg.reuses << ", \"kkt_steps\": " << r.solve.kktSteps << ", \"preconditioner\": " << Str(r.preconditioner) << ", \"max_aspect_ratio\": " << Num(r.aspect);
+  o << ", \"kkt_steps\": " << r.solve.kktSteps << ", \"solve_seconds\": " << Num(r.solve.solveSeconds) << ", \"nested\": " << (r.solve.levels.empty() ? "false" : "true");
+  if (r.solve.vi) o << ", \"amg_setups\": " << r.solve.amg.setups << ", \"amg_reuses\": " << r.solve.amg.reuses << ", \"preconditioner\": " << Str(r.preconditioner) << ", \"max_aspect_ratio\": " << Num(r.aspect);
   if (!r.solve.levels.empty()) {
     PetscInt newton = 0, ksp = 0;
     o << ", \"levels\": [";

@@ -39,7 +39,7 @@ struct SolveResult {
   PetscReal   kktReached = 0, kktDefault = 0;
   std::string loosened; // the stopping options the user set looser than the defaults ("-snes_rtol 0.001")
   PetscInt    scaleExponent = 0; // the solve worked on u / 2^scaleExponent (DataScale::u, datascale.h)
-  PetscInt    kktSteps  = 0; // Newton steps beyond the residual test, until the KKT checks passed (kktstop.h)
+  PetscInt    kktSteps  = 0; // Newton steps beyond the residual test for the KKT checks (kktstop.h); linear: more solves
   std::string stoppedBy = "full"; // which test ended the solve: full, start_error, energy_error (SolveOptions) or roundoff_floor (stall.h)
   PetscReal stationarity = 0; // max |r| over DOFs that are neither Dirichlet nor contact, relative to max |load|
   PetscReal energy = 0;
