@@ -161,6 +161,27 @@ static PetscErrorCode CheckKSPNorm(KSP ksp)
   PetscFunctionReturn(0);
 }
 
+// PETSc 3.18 reads -ksp_rtol 1 or -snes_atol -1 without a check, and refuses them only when they are set
+// again, inside the solve, as a PETSc error: checked here, as inputs.
+static PetscErrorCode CheckTolerances(MPI_Comm comm, const char *prefix, PetscReal rtol, PetscReal atol, PetscInt maxit)
+{
+  PetscFunctionBeginUser;
+  if (!(rtol >= 0 && rtol < 1)) SIGNORINI_INPUT_ERROR(comm, "option -%s_rtol %s: must be at least 0 and below 1", prefix, Format("%g", (double)rtol).c_str());
+  if (!(atol >= 0)) SIGNORINI_INPUT_ERROR(comm, "option -%s_atol %s: must be at least 0", prefix, Format("%g", (double)atol).c_str());
+  if (maxit < 0) SIGNORINI_INPUT_ERROR(comm, "option -%s_max_it %" PetscInt_FMT ": must be at least 0", prefix, maxit);
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode CheckKSPTolerances(KSP ksp)
+{
+  PetscReal rtol, atol, dtol;
+  PetscInt  maxit;
+  PetscFunctionBeginUser;
+  PetscCall(KSPGetTolerances(ksp, &rtol, &atol, &dtol, &maxit));
+  PetscCall(CheckTolerances(PetscObjectComm((PetscObject)ksp), "ksp", rtol, atol, maxit));
+  PetscFunctionReturn(0);
+}
+
 // Where stiff rows dominate ||b|| (kappa jumps, stretched cells), the KSP's relative test passes while the
 // soft rows are still off, as in the contact solve (kktstop.h): the solve goes on from where it stopped,
 // asked for a residual lowered as far as the stationarity misses -kkt_tolerance, up to KKTStop::kMaxSteps
@@ -177,6 +198,7 @@ static PetscErrorCode SolveLinear(const Space &space, const System &sys, Vec u, 
   PetscCall(ConfigureKSP(ksp));
   PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)ksp), KSPSetFromOptions(ksp)));
   PetscCall(CheckKSPNorm(ksp));
+  PetscCall(CheckKSPTolerances(ksp));
   PetscCall(KSPGetTolerances(ksp, &rtol, &atol, &dtol, &maxit));
   PetscCall(KSPSolve(ksp, sys.b, u));
   PetscCall(KSPGetConvergedReason(ksp, &reason));
@@ -211,7 +233,7 @@ PetscErrorCode SolveOptionsFromCommandLine(MPI_Comm comm, SolveOptions &o)
 {
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Solve", "signorini");
-  PetscCall(OptionReal(PetscOptionsObject, "-kkt_tolerance", "The contact solve goes on beyond its residual test until the relative KKT residuals on Gamma_C and the stationarity off it are below this (up to 10 Newton steps more, or the round-off floor; not with stopping options looser than the defaults); a solve that ends above it warns, naming the cause and its remedy (0: neither)", o.kktTolerance, 0));
+  PetscCall(OptionReal(PetscOptionsObject, "-kkt_tolerance", "The solve goes on beyond its residual test until the relative KKT residuals on Gamma_C and the stationarity off it (without a contact part: the stationarity) are below this (up to 10 Newton steps or linear solves more, or the round-off floor; not with stopping options looser than the defaults); a contact solve that ends above it warns, naming the cause and its remedy (0: neither)", o.kktTolerance, 0));
   PetscCall(OptionBool(PetscOptionsObject, "-compare_linear", "After the solve, time one linear solve of the same operator and right-hand side (same KSP/PC options) for comparison", o.compareLinear));
   PetscOptionsEnd();
   PetscCall(AmgReuseOptionsFromCommandLine(comm, o.amgReuse));
@@ -335,6 +357,32 @@ static PetscErrorCode LoosenedStoppingTest(SNES snes, PetscReal atol, PetscReal 
   PetscFunctionReturn(0);
 }
 
+// The SNES tolerances (see CheckTolerances), and the line searches that work with the contact solve:
+// basic (its default here), bt, l2 and cp; nleqerr compares vectors of the full and the inactive-set size,
+// and shell needs code of its own.
+static PetscErrorCode CheckSNESOptions(SNES snes)
+{
+  SNESLineSearch     ls;
+  SNESLineSearchType type;
+  PetscBool          ok = PETSC_FALSE;
+  PetscReal          rtol, atol, stol;
+  PetscInt         maxit, maxf;
+  MPI_Comm         comm = PetscObjectComm((PetscObject)snes);
+  PetscFunctionBeginUser;
+  PetscCall(SNESGetTolerances(snes, &atol, &rtol, &stol, &maxit, &maxf));
+  PetscCall(CheckTolerances(comm, "snes", rtol, atol, maxit));
+  if (!(stol >= 0)) SIGNORINI_INPUT_ERROR(comm, "option -snes_stol %s: must be at least 0", Format("%g", (double)stol).c_str());
+  PetscCall(SNESGetLineSearch(snes, &ls));
+  PetscCall(SNESLineSearchGetType(ls, &type));
+  for (const char *t : {SNESLINESEARCHBASIC, SNESLINESEARCHBT, SNESLINESEARCHL2, SNESLINESEARCHCP}) {
+    PetscBool same;
+    PetscCall(PetscStrcmp(type, t, &same));
+    ok = (PetscBool)(ok || same);
+  }
+  if (!ok) SIGNORINI_INPUT_ERROR(comm, "option -snes_linesearch_type %s: the contact solve cannot use it; use basic (the default), bt, l2 or cp", type);
+  PetscFunctionReturn(0);
+}
+
 // The KSP types the reduced-space solve has been seen to work with. Its Newton steps solve the block of
 // the inactive set, whose size changes from step to step, through the preconditioner shell of amgreuse.h,
 // which has no transpose: types that keep vectors from one solve to the next (lgmres, dgmres, fcg,
@@ -398,6 +446,8 @@ static PetscErrorCode SolveVI(const Space &space, const Problem &problem, const 
   if (!vi) SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)snes), "option -snes_type %s: the contact problem needs a solver for bounds: vinewtonrsls (the default) or vinewtonssls", type);
   PetscBool rsls;
   PetscCall(PetscObjectTypeCompare((PetscObject)snes, SNESVINEWTONRSLS, &rsls));
+  PetscCall(CheckKSPTolerances(ksp));
+  PetscCall(CheckSNESOptions(snes));
   if (rsls) PetscCall(CheckKSPType(ksp));
   PetscCall(AdaptToSNESType(snes, sys, ctx, &J));
   PetscReal atol, rtol, stol;

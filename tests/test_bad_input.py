@@ -191,6 +191,12 @@ with tempfile.TemporaryDirectory() as inputs:
         ("unknown KSP type", ["-ksp_type", "bogus"], "KSP type bogus", True),
         ("unknown PC type", ["-pc_type", "bogus"], "PC type bogus", True),
         ("unknown PC type for the inactive-set blocks", ["-vi_pc_type", "bogus"], "PC type bogus", True),
+        # tolerances PETSc reads unchecked and refuses only inside the solve; a line search the solve cannot use
+        ("KSP rtol of 1", ["-ksp_rtol", "1"], "option -ksp_rtol 1: must be at least 0 and below 1", True),
+        ("negative SNES atol", ["-snes_atol", "-1e-3"], "option -snes_atol -0.001: must be at least 0", True),
+        ("negative KSP max_it", ["-ksp_max_it", "-3"], "option -ksp_max_it -3: must be at least 0", False),
+        ("KSP rtol of 2, no contact part", ["-ksp_rtol", "2", "-bc_contact", "", "-bc_neumann", "2,4,1"], "option -ksp_rtol 2: must be at least 0 and below 1", False),
+        ("line search nleqerr", ["-snes_linesearch_type", "nleqerr"], "option -snes_linesearch_type nleqerr: the contact solve cannot use it", True),
     ]
 
     # Errors that need no fine mesh must stop the run before the refinement (which costs minutes at scale):
