@@ -407,6 +407,27 @@ static PetscErrorCode CheckKSPType(KSP ksp)
   PetscFunctionReturn(0);
 }
 
+// The options a contact solve reads, as inputs: the KSP's norm and tolerances, the SNES type (the bounds
+// u >= psi need a VI solver; PETSc would refuse another one only inside SNESSolve), its tolerances and line
+// search, and the KSP type of the reduced-space solver. Collective.
+static PetscErrorCode CheckContactSolver(SNES snes)
+{
+  KSP       ksp;
+  SNESType  type;
+  PetscBool vi, rsls;
+  PetscFunctionBeginUser;
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(CheckKSPNorm(ksp));
+  PetscCall(CheckKSPTolerances(ksp));
+  PetscCall(SNESGetType(snes, &type));
+  PetscCall(PetscObjectTypeCompareAny((PetscObject)snes, &vi, SNESVINEWTONRSLS, SNESVINEWTONSSLS, ""));
+  if (!vi) SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)snes), "option -snes_type %s: the contact problem needs a solver for bounds: vinewtonrsls (the default) or vinewtonssls", type);
+  PetscCall(CheckSNESOptions(snes));
+  PetscCall(PetscObjectTypeCompare((PetscObject)snes, SNESVINEWTONRSLS, &rsls));
+  if (rsls) PetscCall(CheckKSPType(ksp));
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode SolveVI(const Space &space, const Problem &problem, const System &sys, Vec lower, Vec u, SolveResult &r, const SolveOptions &opts, const DataScale &scale)
 {
   EnergyStop          energyStop;
@@ -438,17 +459,9 @@ static PetscErrorCode SolveVI(const Space &space, const Problem &problem, const 
   const PetscErrorCode fromOptions = SNESSetFromOptions(snes);
   if (!zeroTolSet) PetscCall(PetscOptionsClearValue(NULL, "-snes_vi_zero_tolerance"));
   PetscCall(OptionsAsInputError(PetscObjectComm((PetscObject)snes), fromOptions));
-  PetscCall(CheckKSPNorm(ksp));
-  SNESType  type; // the bounds u >= psi need a VI solver; PETSc would refuse another one only inside SNESSolve
-  PetscBool vi;
-  PetscCall(SNESGetType(snes, &type));
-  PetscCall(PetscObjectTypeCompareAny((PetscObject)snes, &vi, SNESVINEWTONRSLS, SNESVINEWTONSSLS, ""));
-  if (!vi) SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)snes), "option -snes_type %s: the contact problem needs a solver for bounds: vinewtonrsls (the default) or vinewtonssls", type);
+  PetscCall(CheckContactSolver(snes));
   PetscBool rsls;
   PetscCall(PetscObjectTypeCompare((PetscObject)snes, SNESVINEWTONRSLS, &rsls));
-  PetscCall(CheckKSPTolerances(ksp));
-  PetscCall(CheckSNESOptions(snes));
-  if (rsls) PetscCall(CheckKSPType(ksp));
   PetscCall(AdaptToSNESType(snes, sys, ctx, &J));
   PetscReal atol, rtol, stol;
   PetscInt  maxit, maxf;
@@ -677,6 +690,32 @@ PetscErrorCode WriteContactProfile(const Space &space, const Problem &problem, c
     for (int k = 0; k < ncol; ++k) text += Format(k + 1 < ncol ? "%.17g," : "%.17g\n", r[k]);
   }
   PetscCall(WriteFileAtomically(comm, file, text));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode CheckSolverOptions(MPI_Comm comm, bool contact)
+{
+  SNES snes;
+  KSP  ksp;
+  PetscFunctionBeginUser;
+  if (contact) {
+    PetscCall(SNESCreate(comm, &snes));
+    PetscCall(SNESSetType(snes, SNESVINEWTONRSLS));
+    PetscCall(SNESGetKSP(snes, &ksp));
+    PetscCall(ConfigureKSP(ksp));
+    PetscCall(OptionsAsInputError(comm, SNESSetFromOptions(snes)));
+    const PetscErrorCode checked = CheckContactSolver(snes);
+    PetscCall(SNESDestroy(&snes));
+    PetscCall(checked);
+    PetscFunctionReturn(0);
+  }
+  PetscCall(KSPCreate(comm, &ksp));
+  PetscCall(ConfigureKSP(ksp));
+  PetscCall(OptionsAsInputError(comm, KSPSetFromOptions(ksp)));
+  PetscErrorCode checked = CheckKSPNorm(ksp);
+  if (!checked) checked = CheckKSPTolerances(ksp);
+  PetscCall(KSPDestroy(&ksp));
+  PetscCall(checked);
   PetscFunctionReturn(0);
 }
 

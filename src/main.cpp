@@ -110,6 +110,7 @@ static PetscErrorCode Run(MPI_Comm comm)
     PetscFunctionReturn(0);
   }
   PetscCall(CheckUnknownOptions(comm)); // a mistyped option fails now, not after the run
+  PetscCall(CheckSolverOptions(comm, s.problem.HasContact())); // and one the solve cannot use, before the mesh
 
   // mesh -> space -> assembly -> solve -> errors -> report -> output
   const bool adaptive = s.adapt.steps > 0;

@@ -208,7 +208,9 @@ with tempfile.TemporaryDirectory() as inputs:
                          "singular, and a missing mesh file", "bad expression, and a missing mesh file",
                          "quadrilateral cells", "no cells of dimension 2 or 3", "curved surface mesh",
                          "duplicated node", "duplicated node, msh 4.1", "dangling node reference", "a triangle (a, a, b)", "triangles and a tetrahedron",
-                         "second-order elements", "msh version 1", "missing options file", "unknown partitioner"}
+                         "second-order elements", "msh version 1", "missing options file", "unknown partitioner",
+                         "SNES type without bounds", "unknown KSP type", "unknown PC type", "KSP rtol of 1", "negative SNES atol",
+                         "negative KSP max_it", "KSP rtol of 2, no contact part", "line search nleqerr"}
     c.check(before_refinement <= {case[0] for case in cases}, "every case named in before_refinement exists")
     for name, extra, names, parallel in cases:
         for ranks in [1, 2] if parallel else [1]:

@@ -72,6 +72,9 @@ struct SolveOptions {
 };
 PetscErrorCode SolveOptionsFromCommandLine(MPI_Comm comm, SolveOptions &o);
 
+// The solver options as inputs, before any mesh is built (what the solve would refuse: -ksp_type, -ksp_rtol,
+// -snes_type, ...): one line naming the option. contact: the scene has a contact part. Collective.
+PetscErrorCode CheckSolverOptions(MPI_Comm comm, bool contact);
 // With -help: lists the SNES, KSP and PC options of the default solver without solving anything.
 PetscErrorCode SolverOptionsHelp(MPI_Comm comm);
 // Writes u_h, psi and the contact pressure at every contact DOF as CSV (x, y[, z], u, psi, pressure),
