@@ -693,17 +693,26 @@ PetscErrorCode WriteContactProfile(const Space &space, const Problem &problem, c
   PetscFunctionReturn(0);
 }
 
+// A contact solver read from the options as the solve reads them, without anything to solve.
+static PetscErrorCode SolverFromOptions(MPI_Comm comm, SNES *snes)
+{
+  KSP ksp;
+  PetscFunctionBeginUser;
+  PetscCall(SNESCreate(comm, snes));
+  PetscCall(SNESSetType(*snes, SNESVINEWTONRSLS));
+  PetscCall(SNESGetKSP(*snes, &ksp));
+  PetscCall(ConfigureKSP(ksp));
+  PetscCall(OptionsAsInputError(comm, SNESSetFromOptions(*snes)));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode CheckSolverOptions(MPI_Comm comm, bool contact)
 {
   SNES snes;
   KSP  ksp;
   PetscFunctionBeginUser;
   if (contact) {
-    PetscCall(SNESCreate(comm, &snes));
-    PetscCall(SNESSetType(snes, SNESVINEWTONRSLS));
-    PetscCall(SNESGetKSP(snes, &ksp));
-    PetscCall(ConfigureKSP(ksp));
-    PetscCall(OptionsAsInputError(comm, SNESSetFromOptions(snes)));
+    PetscCall(SolverFromOptions(comm, &snes));
     const PetscErrorCode checked = CheckContactSolver(snes);
     PetscCall(SNESDestroy(&snes));
     PetscCall(checked);
@@ -722,13 +731,8 @@ PetscErrorCode CheckSolverOptions(MPI_Comm comm, bool contact)
 PetscErrorCode SolverOptionsHelp(MPI_Comm comm)
 {
   SNES snes;
-  KSP  ksp;
   PetscFunctionBeginUser;
-  PetscCall(SNESCreate(comm, &snes));
-  PetscCall(SNESSetType(snes, SNESVINEWTONRSLS));
-  PetscCall(SNESGetKSP(snes, &ksp));
-  PetscCall(ConfigureKSP(ksp));
-  PetscCall(OptionsAsInputError(comm, SNESSetFromOptions(snes)));
+  PetscCall(SolverFromOptions(comm, &snes));
   PetscCall(SNESDestroy(&snes));
   PetscFunctionReturn(0);
 }

@@ -31,8 +31,8 @@ static PetscErrorCode KKTTest(SNES snes, PetscInt it, PetscReal xnorm, PetscReal
   }
   SolveResult checks;
   PetscCall(MeasureKKTFromResidual(*k->space, *k->sys, x, F, k->loadFactor, k->lower, k->measure, checks));
-  k->worst = std::max(checks.kktRelative, checks.stationarity);
-  if (!(k->worst > k->tolerance)) PetscFunctionReturn(0);
+  const PetscReal worst = std::max(checks.kktRelative, checks.stationarity);
+  if (!(worst > k->tolerance)) PetscFunctionReturn(0);
   // On: the next linear solve to a residual lowered as far as the checks miss, with a margin of 100 for
   // the max norms they use against the 2-norm the solvers use.
   KSP       ksp;
@@ -40,7 +40,7 @@ static PetscErrorCode KKTTest(SNES snes, PetscInt it, PetscReal xnorm, PetscReal
   PetscInt  kspMaxit;
   PetscCall(SNESGetKSP(snes, &ksp));
   PetscCall(KSPGetTolerances(ksp, &rtol, &atol, &dtol, &kspMaxit));
-  const PetscReal lowered = fnorm * std::max((PetscReal)1e-10, 1e-2 * k->tolerance / k->worst);
+  const PetscReal lowered = fnorm * std::max((PetscReal)1e-10, 1e-2 * k->tolerance / worst);
   PetscCall(KSPSetTolerances(ksp, rtol, std::min(atol, lowered), dtol, kspMaxit));
   k->steps++;
   *reason = SNES_CONVERGED_ITERATING;

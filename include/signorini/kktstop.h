@@ -24,15 +24,14 @@ namespace signorini {
 struct KKTStop {
   static constexpr PetscInt kMaxSteps = 10; // Newton steps beyond the wrapped test
   WrappedTest    wrap;
-  const Space   *space        = nullptr;
-  const System  *sys          = nullptr;
-  Vec            lower        = nullptr; // the bounds, in the solver's units
-  Vec            measure      = nullptr; // ContactMeasure, made at the first check
-  const Problem *problem      = nullptr;
-  PetscReal      loadFactor   = 1; // the load in the solver's units
-  PetscReal      tolerance    = 0;
-  PetscInt       steps        = 0; // Newton steps taken beyond the wrapped test
-  PetscReal      worst        = 0; // the last checks' worst relative residual
+  const Space   *space      = nullptr;
+  const Problem *problem    = nullptr;
+  const System  *sys        = nullptr;
+  Vec            lower      = nullptr; // the bounds, in the solver's units
+  Vec            measure    = nullptr; // ContactMeasure, made at the first check
+  PetscReal      loadFactor = 1;       // the load in the solver's units
+  PetscReal      tolerance  = 0;
+  PetscInt       steps      = 0; // Newton steps taken beyond the wrapped test
   PetscErrorCode Destroy();
 };
 
