@@ -203,26 +203,27 @@ static PetscErrorCode SolveLinear(const Space &space, const System &sys, Vec u, 
   PetscCall(KSPSolve(ksp, sys.b, u));
   PetscCall(KSPGetConvergedReason(ksp, &reason));
   PetscCall(KSPGetIterationNumber(ksp, &r.kspIts));
-  for (; reason > 0 && tolerance > 0 && rtol <= kKspRtol && r.kktSteps < KKTStop::kMaxSteps; ++r.kktSteps) {
-    Vec         res;
+  const bool restarts = reason > 0 && tolerance > 0 && rtol <= kKspRtol;
+  Vec        res      = nullptr;
+  if (restarts) PetscCall(VecDuplicate(u, &res));
+  for (; restarts && reason > 0 && r.kktSteps < KKTStop::kMaxSteps; ++r.kktSteps) {
     SolveResult checks;
     PetscReal   norm;
     PetscInt    its;
-    PetscCall(VecDuplicate(u, &res));
     PetscCall(MatMult(sys.A, u, res));
     PetscCall(VecAXPY(res, -1.0, sys.b));
     PetscCall(MeasureKKTFromResidual(space, sys, u, res, loadFactor, nullptr, nullptr, checks));
-    PetscCall(VecNorm(res, NORM_2, &norm));
-    PetscCall(VecDestroy(&res));
     if (!(checks.stationarity > tolerance)) break;
+    PetscCall(VecNorm(res, NORM_2, &norm));
     PetscCall(KSPSetInitialGuessNonzero(ksp, PETSC_TRUE));
     // (from a nonzero guess rtol is relative to ||b||, which the stiff rows dominate: atol alone decides)
-    PetscCall(KSPSetTolerances(ksp, 0, norm * std::max((PetscReal)1e-10, 1e-2 * tolerance / checks.stationarity), dtol, maxit));
+    PetscCall(KSPSetTolerances(ksp, 0, KKTStop::Lowered(norm, tolerance, checks.stationarity), dtol, maxit));
     PetscCall(KSPSolve(ksp, sys.b, u));
     PetscCall(KSPGetConvergedReason(ksp, &reason));
     PetscCall(KSPGetIterationNumber(ksp, &its));
     r.kspIts += its;
   }
+  PetscCall(VecDestroy(&res));
   r.reason = KSPConvergedReasons[reason];
   PetscCall(KSPDestroy(&ksp));
   if (reason < 0) SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)u), "solver: the linear solve did not converge (%s after %" PetscInt_FMT " iterations); try other -ksp_type/-pc_type options", r.reason.c_str(), r.kspIts);

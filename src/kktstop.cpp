@@ -33,15 +33,13 @@ static PetscErrorCode KKTTest(SNES snes, PetscInt it, PetscReal xnorm, PetscReal
   PetscCall(MeasureKKTFromResidual(*k->space, *k->sys, x, F, k->loadFactor, k->lower, k->measure, checks));
   const PetscReal worst = std::max(checks.kktRelative, checks.stationarity);
   if (!(worst > k->tolerance)) PetscFunctionReturn(0);
-  // On: the next linear solve to a residual lowered as far as the checks miss, with a margin of 100 for
-  // the max norms they use against the 2-norm the solvers use.
+  // On, the next linear solve asked for less (KKTStop::Lowered)
   KSP       ksp;
   PetscReal rtol, atol, dtol;
   PetscInt  kspMaxit;
   PetscCall(SNESGetKSP(snes, &ksp));
   PetscCall(KSPGetTolerances(ksp, &rtol, &atol, &dtol, &kspMaxit));
-  const PetscReal lowered = fnorm * std::max((PetscReal)1e-10, 1e-2 * k->tolerance / worst);
-  PetscCall(KSPSetTolerances(ksp, rtol, std::min(atol, lowered), dtol, kspMaxit));
+  PetscCall(KSPSetTolerances(ksp, rtol, std::min(atol, KKTStop::Lowered(fnorm, k->tolerance, worst)), dtol, kspMaxit));
   k->steps++;
   *reason = SNES_CONVERGED_ITERATING;
   PetscFunctionReturn(0);

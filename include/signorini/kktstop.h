@@ -23,6 +23,10 @@ namespace signorini {
 
 struct KKTStop {
   static constexpr PetscInt kMaxSteps = 10; // Newton steps beyond the wrapped test
+  // The residual (2-norm) the next linear solve is asked for, from one of `norm` whose checks reached
+  // `worst` against `tolerance`: lowered as far as they miss, with a margin of 100 for the max norms they
+  // use against the 2-norm the solvers use, and no lower than 1e-10 of it.
+  static PetscReal Lowered(PetscReal norm, PetscReal tolerance, PetscReal worst) { return norm * PetscMax((PetscReal)1e-10, 1e-2 * tolerance / worst); }
   WrappedTest    wrap;
   const Space   *space      = nullptr;
   const Problem *problem    = nullptr;
