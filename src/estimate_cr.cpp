@@ -1,6 +1,7 @@
 // The reconstruction for the Crouzeix-Raviart element (estimate.h): Marini's face fluxes from the
 // residual of each cell, and the vertex average of u_h as the conforming companion.
 #include "signorini/estimate.h"
+#include "signorini/contact.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,8 +10,8 @@ namespace signorini {
 
 namespace {
 // Per local vertex: the sum of kappa_T |T| u_h|_T(a) over the cells T at the vertex a, the sum of their
-// weights kappa_T |T|, and how many Dirichlet and contact faces touch it.
-constexpr int kVertexData = 4;
+// weights kappa_T |T|, and how many Dirichlet, contact and active contact faces touch it.
+constexpr int kVertexData = 5;
 // The companion solve's relative tolerance (preconditioned residual): the closest N can be 1/200 of the
 // average's, and the solve must get within a small fraction of it.
 constexpr PetscReal kCompanionRtol = 1e-6;
@@ -321,6 +322,19 @@ PetscErrorCode ReconstructCR(const Space &space, const Problem &problem, const S
   PetscCall(DMGlobalToLocal(space.dm, u, INSERT_VALUES, loc));
   PetscCall(VecGetArrayRead(loc, &a));
   FluxesAndVertexSums(space, problem, sys, a, r, vdata, error);
+  // The active contact faces (u_h - psi at the midpoint within the solver's ActiveTolerance) mark their
+  // vertices, where v may be held at psi (Reconstruction::pinned).
+  PetscReal maxU;
+  PetscCall(VecNorm(u, NORM_INFINITY, &maxU));
+  const PetscReal activeTol = ActiveTolerance(maxU);
+  for (const BoundaryFace &bf : space.boundary) {
+    if (space.kindLocal[bf.dof] != kContact) continue;
+    PetscReal x[3];
+    space.DofPoint(bf.cell, bf.opposite, x);
+    if (PetscRealPart(a[bf.dof]) - problem.psi->Scalar(x, dim, error) > activeTol) continue;
+    for (PetscInt k = 0; k < nb; ++k)
+      if (k != bf.opposite) vdata[kVertexData * space.cellVert[bf.cell * nb + k] + 4] += 1;
+  }
   PetscCall(VecRestoreArrayRead(loc, &a));
   PetscCall(DMRestoreLocalVector(space.dm, &loc));
 
@@ -351,13 +365,20 @@ PetscErrorCode ReconstructCR(const Space &space, const Problem &problem, const S
   r.lower.assign(nv, PETSC_MIN_REAL);
   r.movable.assign(nv, 1);
   r.owned.assign(nv, 1);
+  r.pinned.assign(nv, 0);
+  PetscInt anyPinned = 0;
   for (PetscInt v = 0; v < nv; ++v) {
     const PetscReal *d = &vdata[kVertexData * v], *x = &space.vertX[v * dim];
     r.companion[v]     = d[1] > 0 ? d[0] / d[1] : 0.0;
     if (d[2] > 0) r.companion[v] = problem.uD->Scalar(x, dim, error), r.movable[v] = 0;
-    else if (d[3] > 0) r.lower[v] = problem.psi->Scalar(x, dim, error), r.companion[v] = std::max(r.companion[v], r.lower[v]);
+    else if (d[3] > 0) {
+      r.lower[v] = problem.psi->Scalar(x, dim, error), r.companion[v] = std::max(r.companion[v], r.lower[v]);
+      if (d[4] > 0) r.pinned[v] = 1, anyPinned = 1;
+    }
   }
   PetscCall(CheckAll(comm, error.empty(), error));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &anyPinned, 1, MPIU_INT, MPI_MAX, comm));
+  r.anyPinned = anyPinned > 0;
   PetscInt        nleaves;
   const PetscInt *leaves;
   PetscCall(PetscSFGetGraph(space.vertexSF, NULL, &nleaves, &leaves, NULL));

@@ -27,7 +27,8 @@
 // on Gamma_C. v: the vertex average of u_h, set to u_D on Gamma_D and raised to psi on Gamma_C, moved by
 // conjugate gradients towards the conforming function closest to u_h where the average is far from it
 // (cells of large aspect ratio), and solved for with BoomerAMG where the gradients show it was very far
-// (cells of large kappa that touch at a vertex only).
+// (cells of large kappa that touch at a vertex only); where the contact term weighs in eta, the bound is
+// also taken with v held at psi at the vertices of the active contact faces, and eta is the smaller.
 // P1 (Braess-Schoeberl, Ern-Vohralik): sigma = sum over vertices a of sigma_a, sigma_a in RT0 on the patch
 // of a, with int_T div sigma_a = int_T (kappa grad u_h . grad psi_a - f psi_a) on each cell, zero normal
 // flux on the faces of the patch without a, closest to the cellwise RT0 interpolant of psi_a kappa grad u_h
@@ -54,6 +55,11 @@ struct Reconstruction {
   // whether this rank owns the vertex (ImproveCompanion).
   std::vector<PetscReal> companion, lower;
   std::vector<char>      movable, owned;
+  // CR, per local vertex: 1 where an active contact face (u_h = psi at its midpoint, over all ranks)
+  // touches it, where v may be held at psi (EstimateFromReconstruction); anyPinned: whether any vertex
+  // of any rank is (the same on every rank, as the pass it decides is collective).
+  std::vector<char>      pinned;
+  bool                   anyPinned = false;
   // Per local cell, C_T kappa_T^{-1/2} ||f - Pi_0 f||_T (see CellLoad in assembly.h), from the loads
   // that the flux needed; empty: the estimate gets them itself.
   std::vector<PetscReal> oscillation;
