@@ -427,10 +427,6 @@ PetscErrorCode EstimateFromReconstruction(const Space &space, const Problem &pro
   if (r.oscillation.empty()) PetscCall(CellOscillation(space, problem, sys, r.oscillation, error));
   AddNeumannOscillation(space, problem, sys, r.oscillation, error);
   PetscCall(CheckAll(comm, error.empty(), error));
-  // Decided by the element, the same on every rank: ImproveCompanion is collective, and a rank without
-  // cells has an empty companion.
-  bool                   improve = space.element == Element::CR;
-  std::vector<PetscReal> vertexSums(improve ? 2 * r.companion.size() : 0, 0.0);
   // The cell and contact terms of the current companion into the indicators and the global sums.
   const auto Terms = [&](std::vector<PetscReal> &cellEta2, PetscReal *s, std::vector<PetscReal> *vs) -> PetscErrorCode {
     PetscFunctionBeginUser;
@@ -442,31 +438,45 @@ PetscErrorCode EstimateFromReconstruction(const Space &space, const Problem &pro
     PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, s, kNumSums, MPIU_REAL, MPI_SUM, comm));
     PetscFunctionReturn(0);
   };
+  // The terms of the companion r holds, moved by ImproveCompanion where that pays (CR; decided by the
+  // element, the same on every rank: ImproveCompanion is collective, and a rank without cells has an empty
+  // companion), then again where it moved.
+  const auto TermsImproved = [&](std::vector<PetscReal> &cellEta2, PetscReal *s) -> PetscErrorCode {
+    bool                   improve = space.element == Element::CR;
+    std::vector<PetscReal> vertexSums(improve ? 2 * r.companion.size() : 0, 0.0);
+    PetscFunctionBeginUser;
+    for (bool again = true; again; improve = false) {
+      PetscCall(Terms(cellEta2, s, improve ? &vertexSums : nullptr));
+      again = false;
+      if (improve) PetscCall(ImproveCompanion(space, sys, vertexSums, s[kN2], r, again));
+    }
+    PetscFunctionReturn(0);
+  };
   const auto BoundOf = [](const PetscReal *s, PetscReal gamma) {
     return Bound({std::sqrt(s[kN2]), std::sqrt(s[kF2]), std::sqrt(s[kFh2]), std::sqrt(s[kOsc2]), std::sqrt(s[kFOsc2]), std::sqrt(s[kFhOsc2]), gamma});
   };
-  for (bool again = true; again; improve = false) { // a second time when ImproveCompanion changed v
-    PetscCall(Terms(e.cellEta2, sums, improve ? &vertexSums : nullptr));
-    again = false;
-    if (improve) PetscCall(ImproveCompanion(space, sys, vertexSums, sums[kN2], r, again));
-  }
+  const std::vector<PetscReal> average(r.anyPinned ? r.companion : std::vector<PetscReal>());
+  PetscCall(TermsImproved(e.cellEta2, sums));
   e.eta = BoundOf(sums, sums[kGamma]);
   // gamma grows with the contact pressure where v lies above psi on an active face, as the average of u_h
   // does at its vertices by about the nonconformity, while the error does not (psi raised by a constant c
   // over a fully active Gamma_C, an affine part of u the space holds: eta grew like c^(1/2), from 0.32 at
-  // c = 0 to 5.5e3 at c = 1e10, paper-5.1 -box_faces 8). v held at psi there makes gamma vanish for a
-  // larger N (which on coarse meshes of smaller pressures outweighs the gain: paper-5.1 -box_faces 8 0.318
-  // -> 0.333): both are valid companions and eta is the smaller, the second computed only where gamma
-  // weighs more than kLiftGain in eta.
+  // c = 0 to 5.5e3 at c = 1e10, paper-5.1 -box_faces 8). v held at psi there (and moved elsewhere as
+  // before, those vertices held) makes gamma vanish for a larger N (which on coarse meshes of smaller
+  // pressures outweighs the gain: paper-5.1 -box_faces 8 0.318 -> 0.333): both are valid companions and
+  // eta is the smaller, the second computed only where gamma weighs more than kLiftGain in eta.
   if (r.anyPinned && e.eta - BoundOf(sums, 0) > kLiftGain * e.eta) {
-    std::vector<PetscReal> average(r.companion), cellEta2;
+    std::vector<PetscReal> first(r.companion), cellEta2;
+    std::vector<char>      movable(r.movable);
     PetscReal              held[kNumSums];
+    r.companion = average;
     for (size_t v = 0; v < r.pinned.size(); ++v)
-      if (r.pinned[v]) r.companion[v] = r.lower[v];
-    PetscCall(Terms(cellEta2, held, nullptr));
+      if (r.pinned[v]) r.companion[v] = r.lower[v], r.movable[v] = 0;
+    PetscCall(TermsImproved(cellEta2, held));
+    r.movable = std::move(movable);
     const PetscReal eta = BoundOf(held, held[kGamma]);
     if (eta < e.eta) e.eta = eta, e.cellEta2 = std::move(cellEta2), std::copy(held, held + kNumSums, sums);
-    else r.companion = std::move(average);
+    else r.companion = std::move(first);
   }
   e.flux          = std::sqrt(sums[kF2]);
   e.nonconformity = std::sqrt(sums[kN2]);
