@@ -786,8 +786,12 @@ PetscErrorCode Solve(const Space &space, const Problem &problem, const System &s
     PetscCall(ContactLowerBound(space, problem, lower));
   }
   PetscCall(SpaceReleaseWorkVectors(space));
-  // The solvers see u and the equations divided by their scales, powers of 2 (datascale.h): exact both ways.
+  // The solvers see u and the equations shifted by a constant where the data are far from 0 against their
+  // spread, and divided by their scales, powers of 2 (datascale.h).
   DataScale scale;
+  Vec       savedB = nullptr;
+  PetscCall(DataShiftCompute(space, sys, lower, &scale.shift));
+  PetscCall(ShiftData(space, sys, lower, opts.initialGuess ? u : nullptr, scale, false, &savedB));
   PetscCall(DataScaleCompute(space, sys, lower, &scale));
   PetscCall(ScaleData(sys, lower, opts.initialGuess ? u : nullptr, scale, false));
   r.scaleExponent = scale.u;
@@ -807,8 +811,16 @@ PetscErrorCode Solve(const Space &space, const Problem &problem, const System &s
     PetscCall(VecDuplicate(u, &measure));
     PetscCall(ContactMeasure(space, problem, measure));
   }
+  // The checks of the shifted problem, whose A u - b has no round-off floor from the shift; the same
+  // conditions (u - psi and the reactions do not change with it). J(u) = J(u - s) - s chi(1).
   PetscCall(MeasureKKT(space, sys, u, lower, measure, r));
   PetscCall(DiscreteEnergy(space, sys, u, &r.energy));
+  if (scale.shift != 0) {
+    PetscScalar chi1;
+    PetscCall(VecSum(sys.load, &chi1));
+    r.energy -= scale.shift * PetscRealPart(chi1);
+  }
+  PetscCall(ShiftData(space, sys, lower, u, scale, true, &savedB));
   PetscCall(VecDestroy(&lower));
   PetscCall(VecDestroy(&measure));
   PetscFunctionReturn(0);

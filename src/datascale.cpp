@@ -19,18 +19,18 @@ PetscErrorCode ZeroDirichletRows(const Space &space, Vec v, PetscReal *vmax)
   PetscFunctionReturn(0);
 }
 
-// log2 of |l|_inf (l.l) / (l.A l) for l = b off the Dirichlet rows: the size of A^-1 l if l were an
+// log2 of |l|_inf (l.l) / (l.A l) for l = rhs (b, or the load before the elimination) off the Dirichlet rows: the size of A^-1 l if l were an
 // eigenvector, and of the right order for a smooth load (a rough one gives less, by at most the condition
 // number). l is first scaled by a power of 2 to |l|_inf in [1, 2), so that neither product under- or
 // overflows. -infinity when l = 0.
-PetscErrorCode LoadScaleLog2(const Space &space, const System &sys, PetscReal *log2U)
+PetscErrorCode LoadScaleLog2(const Space &space, const System &sys, Vec rhs, PetscReal *log2U)
 {
   MPI_Comm  comm = PetscObjectComm((PetscObject)sys.b);
   Vec       l, Al;
   PetscReal lmax;
   PetscFunctionBeginUser;
-  PetscCall(VecDuplicate(sys.b, &l));
-  PetscCall(VecCopy(sys.b, l));
+  PetscCall(VecDuplicate(rhs, &l));
+  PetscCall(VecCopy(rhs, l));
   PetscCall(ZeroDirichletRows(space, l, &lmax));
   if (!std::isfinite(lmax)) {
     PetscCall(VecDestroy(&l));
@@ -68,7 +68,106 @@ PetscErrorCode RowScaleLog2(const Space &space, const System &sys, PetscReal *lo
   *log2R = dmax > 0 && std::isfinite(dmax) ? std::log2(dmax) : 0;
   PetscFunctionReturn(0);
 }
+
+// Smallest and largest value of v over the given owned indices, over all ranks (+inf, -inf for none).
+PetscErrorCode RangeOver(MPI_Comm comm, Vec v, const std::vector<PetscInt> &owned, PetscReal range[2])
+{
+  const PetscScalar *a;
+  PetscFunctionBeginUser;
+  PetscReal m[2] = {PETSC_MAX_REAL, PETSC_MAX_REAL}; // min, -max
+  PetscCall(VecGetArrayRead(v, &a));
+  for (PetscInt i : owned) m[0] = std::min(m[0], PetscRealPart(a[i])), m[1] = std::min(m[1], -PetscRealPart(a[i]));
+  PetscCall(VecRestoreArrayRead(v, &a));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, m, 2, MPIU_REAL, MPI_MIN, comm));
+  range[0] = m[0], range[1] = -m[1];
+  PetscFunctionReturn(0);
+}
+
+// d_i = sum over the Dirichlet DOFs j of A_ij (before the elimination) on the other rows, 0 on the
+// Dirichlet rows: from the element matrices of the cells with Dirichlet DOFs.
+PetscErrorCode DirichletColumnSums(const Space &space, const System &sys, Vec d)
+{
+  Vec          loc;
+  PetscScalar *a;
+  PetscReal    Ke[16];
+  PetscFunctionBeginUser;
+  const PetscInt nb = space.Nb();
+  PetscCall(DMGetLocalVector(space.dm, &loc));
+  PetscCall(VecSet(loc, 0));
+  PetscCall(VecGetArray(loc, &a));
+  for (PetscInt c = 0; c < space.NumCells(); ++c) {
+    const PetscInt *dofs = space.Dofs(c);
+    bool            any  = false;
+    for (PetscInt i = 0; i < nb; ++i) any = any || space.kindLocal[dofs[i]] == kDirichlet;
+    if (!any) continue;
+    CellGeometry g;
+    ComputeCellGeometry(space.dim, space.X(c), g);
+    ElementStiffness(space, c, sys.Kappa(c), g, Ke);
+    for (PetscInt i = 0; i < nb; ++i)
+      for (PetscInt j = 0; j < nb; ++j)
+        if (space.kindLocal[dofs[i]] != kDirichlet && space.kindLocal[dofs[j]] == kDirichlet) a[dofs[i]] += Ke[i * nb + j];
+  }
+  PetscCall(VecRestoreArray(loc, &a));
+  PetscCall(VecSet(d, 0));
+  PetscCall(DMLocalToGlobal(space.dm, loc, ADD_VALUES, d));
+  PetscCall(DMRestoreLocalVector(space.dm, &loc));
+  PetscFunctionReturn(0);
+}
+
+// Adds delta to v at the given owned indices.
+PetscErrorCode AddAt(Vec v, const std::vector<PetscInt> &owned, PetscReal delta)
+{
+  PetscScalar *a;
+  PetscFunctionBeginUser;
+  PetscCall(VecGetArray(v, &a));
+  for (PetscInt i : owned) a[i] += delta;
+  PetscCall(VecRestoreArray(v, &a));
+  PetscFunctionReturn(0);
+}
 } // namespace
+
+PetscErrorCode DataShiftCompute(const Space &space, const System &sys, Vec lower, PetscReal *shift)
+{
+  MPI_Comm  comm = PetscObjectComm((PetscObject)sys.b);
+  PetscReal d[2], p[2] = {PETSC_MAX_REAL, -PETSC_MAX_REAL}, log2U;
+  PetscFunctionBeginUser;
+  *shift = 0;
+  PetscCall(RangeOver(comm, sys.uD, space.dirichletOwned, d));
+  if (lower) PetscCall(RangeOver(comm, lower, space.contactOwned, p));
+  const PetscReal lo = std::min(d[0], p[0]), hi = std::max(d[1], p[1]);
+  if (!(lo <= hi) || !std::isfinite(lo) || !std::isfinite(hi)) PetscFunctionReturn(0); // no data, or not finite (DataScaleCompute says so)
+  const PetscReal mid = lo / 2 + hi / 2, half = hi / 2 - lo / 2;
+  if (!(std::fabs(mid) > kShiftRatio * half)) PetscFunctionReturn(0); // (data near 0: no solve of A^-1 l's scale)
+  PetscCall(LoadScaleLog2(space, sys, sys.load, &log2U));
+  const PetscReal spread = std::max(half, log2U == -PETSC_INFINITY ? 0 : std::exp2(log2U));
+  if (std::fabs(mid) > kShiftRatio * spread) *shift = mid;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ShiftData(const Space &space, const System &sys, Vec lower, Vec u, const DataScale &scale, bool back, Vec *savedB)
+{
+  const PetscReal s = scale.shift;
+  PetscFunctionBeginUser;
+  if (s == 0) PetscFunctionReturn(0);
+  if (back) {
+    PetscCall(VecCopy(*savedB, sys.b));
+    PetscCall(VecDestroy(savedB));
+  } else {
+    Vec d;
+    PetscCall(VecDuplicate(sys.b, savedB));
+    PetscCall(VecCopy(sys.b, *savedB));
+    PetscCall(VecDuplicate(sys.b, &d));
+    PetscCall(DirichletColumnSums(space, sys, d));
+    PetscCall(VecAXPY(sys.b, s, d)); // b_i - sum_j A_ij (u_D,j - s) = b_i + s d_i
+    PetscCall(VecDestroy(&d));
+    PetscCall(AddAt(sys.b, space.dirichletOwned, -s)); // the Dirichlet rows: u_D - s
+  }
+  const PetscReal delta = back ? s : -s;
+  PetscCall(AddAt(sys.uD, space.dirichletOwned, delta));
+  if (lower) PetscCall(AddAt(lower, space.contactOwned, delta));
+  if (u) PetscCall(VecShift(u, delta));
+  PetscFunctionReturn(0);
+}
 
 PetscErrorCode DataScaleCompute(const Space &space, const System &sys, Vec lower, DataScale *scale)
 {
@@ -84,7 +183,7 @@ PetscErrorCode DataScaleCompute(const Space &space, const System &sys, Vec lower
     PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &psimax, 1, MPIU_REAL, MPI_MAX, comm));
   }
   if (!std::isfinite(uDmax) || !std::isfinite(psimax)) SIGNORINI_INPUT_ERROR(comm, "the %s is not finite: the data overflow double precision", std::isfinite(uDmax) ? "obstacle psi" : "Dirichlet value u_D");
-  PetscCall(LoadScaleLog2(space, sys, &log2U));
+  PetscCall(LoadScaleLog2(space, sys, sys.b, &log2U));
   for (PetscReal m : {uDmax, psimax})
     if (m > 0) log2U = std::max(log2U, std::log2(m));
   PetscCall(RowScaleLog2(space, sys, &log2R));

@@ -6,7 +6,17 @@ with P1 and CR: with contact and nested iteration (-refine 2, the default path; 
 -compare_linear solve), with contact without it, and
 without contact (one linear solve); on 1 rank and, for P1 with nested iteration, on 2 ranks. Scaling kappa
 instead divides u and J by the factor, again with the same iterations. Data whose solution
-double precision cannot hold (its energy would under- or overflow) stop with one error line and write no summary."""
+double precision cannot hold (its energy would under- or overflow) stop with one error line and write no summary.
+
+Offset invariance (an invariant of the discrete problem): u_D and psi raised by a constant c raise u by c (constants
+lie in both spaces and in the kernel of the stiffness), and J(u + c) = J(u) - c chi(1), chi(1) = int f = 0 here up to
+round-off. Checked for c = 300, 1e5, 1e8 (a temperature in kelvin, a pressure in pascal) with P1 and CR, nested,
+on 1 and 2 ranks: the same Newton and KSP iterations on the finest level and active set as c = 0 (the coarse
+levels stop on an estimate of their algebraic error, which sees the rounding of the prolongated u ~ c: 1.5e-8
+at c = 1e8), no warning, the stationarity and KKT checks within -kkt_tolerance, the energy of c = 0 to
+1e-14 c + 1e-12 (chi(1) is 0 up to the round-off of the assembled load, about 1e-15, which c multiplies) and
+the estimate to 1e-2 relative (computed from u ~ c, whose rounding reaches its gradients: 5e-4 at c = 1e8). Before the shift (datascale.h), c = 1e8 ended at the round-off floor after 10
+added Newton steps, with stationarity 1.6e-3, KKT 1.2e-5, 6 DOFs more counted active and J = -252.9 for -0.4617."""
 import os
 import tempfile
 
@@ -66,6 +76,24 @@ for k, summary in runs.items():
     label = "paper-5.1 cr nested -refine 1 kappa=%s" % k
     c.check(iterations(summary) == iterations(base), "%s: iterations %s = %s at kappa = 1" % (label, iterations(summary), iterations(base)))
     c.check(abs(summary["energy"] * f - base["energy"]) <= TOL * abs(base["energy"]), "%s: kappa J = %.15e, J(kappa = 1) = %.15e" % (label, summary["energy"] * f, base["energy"]))
+
+# Offsets (see the top).
+for space in ["p1", "cr"]:
+    for ranks in [1, 2]:
+        args = scene("paper-5.1") + ["-box_faces", "128", "-space", space]
+        _, _, _, base = run(args, ranks=ranks)
+        for offset in ["300", "1e5", "1e8"]:
+            _, out, _, s = run(args + ["-u_D", offset, "-psi", offset], ranks=ranks)
+            label = "paper-5.1 %s N = 128, u_D = psi = %s, %d rank(s)" % (space, offset, ranks)
+            c.check("warning" not in out and s["solver"]["converged_reason"] == base["solver"]["converged_reason"],
+                    "%s: %s, no warning" % (label, s["solver"]["converged_reason"]))
+            finest = lambda x: iterations(x)[:2]
+            c.check(finest(s) == finest(base) and s["kkt"]["active"] == base["kkt"]["active"],
+                    "%s: iterations %s, %d active (c = 0: %s, %d)" % (label, iterations(s), s["kkt"]["active"], iterations(base), base["kkt"]["active"]))
+            c.check(s["stationarity"] <= 1e-6 and s["kkt"]["relative"] <= 1e-6,
+                    "%s: stationarity %.1e, KKT %.1e" % (label, s["stationarity"], s["kkt"]["relative"]))
+            c.check(abs(s["energy"] - base["energy"]) <= 1e-14 * float(offset) + 1e-12 and abs(s["estimate"]["eta"] / base["estimate"]["eta"] - 1) <= 1e-2,
+                    "%s: J %.12e (c = 0: %.12e), eta %.6e (%.6e)" % (label, s["energy"], base["energy"], s["estimate"]["eta"], base["estimate"]["eta"]))
 
 # Out of range: one error line, exit status 1, no summary file.
 # A load of 1e-320 underflows in every quadrature contribution (it would give u = 0): refused in assembly.
