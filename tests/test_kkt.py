@@ -7,7 +7,9 @@ the stationarity hold to -kkt_tolerance, and its u equals the high-contrast pres
 Newton steps without any test), on 1 and 2 ranks; its extra Newton steps are reported. A stopping test loosened
 by the user (-snes_rtol, -snes_atol, -snes_vi_zero_tolerance) is not overridden: a warning names that option. A
 KKT residual that the default stopping test permits (it grows like h^(1-d) under refinement: the pressure
-divides the reaction by a boundary measure) is no warning: the shipped scenes on fine meshes show none."""
+divides the reaction by a boundary measure) is no warning: the shipped scenes on fine meshes show none. Where the
+conditions on Gamma_C hold and the stationarity off it ends above the tolerance at the residual's round-off floor
+(an obstacle 1e10 times what the load adds to u), one warning says so."""
 import os
 
 from harness import OPTIONS, Checker, run, scene
@@ -66,6 +68,17 @@ for space in ["p1", "cr"]:
             "%s: ends at the round-off floor (%s) after %d added steps" % (tag, s["solver"]["converged_reason"], s["solver"]["kkt_steps"]))
     c.check(len(line) == 1 and "round-off floor" in line[0] and "what double precision gives here" in line[0] and "high-contrast" not in line[0],
             "%s: one warning naming the floor: %s" % (tag, line))
+# The stationarity off Gamma_C at the round-off floor: psi = 1e9 over paper-5.1 (u_D = 0), whose load moves u
+# by 0.1 against the 1e9 the data make; A u sums terms of 1e9, and its round-off leaves 1e-3 of the load. The
+# conditions on Gamma_C hold; one warning names the floor and that double precision gives no more.
+for space in ["p1", "cr"]:
+    rc, out, _, s = run(scene("paper-5.1") + ["-space", space, "-box_faces", "64", "-psi", "1e9"])
+    line = [l for l in out.splitlines() if l.startswith("signorini: warning:")]
+    tag = "paper-5.1 %s N = 64, psi = 1e9" % space
+    c.check(rc == 0 and s["solver"]["converged_reason"] == "CONVERGED_ROUNDOFF_FLOOR" and s["kkt"]["relative"] <= 1e-6 and s["stationarity"] > 1e-6,
+            "%s: %s, KKT %.1e, stationarity %.1e" % (tag, s["solver"]["converged_reason"], s["kkt"]["relative"], s["stationarity"]))
+    c.check(len(line) == 1 and line[0].startswith("signorini: warning: the stationarity off Gamma_C holds only to") and "round-off floor" in line[0]
+            and "that is what it gives here" in line[0], "%s: one warning naming the floor: %s" % (tag, line))
 # A stopping test loosened by the user: the warning names the option, not the preset. Every nested level to
 # the loosened test (-solve_to full): full multigrid's coarse levels leave the finest level an active set from
 # which the loose bound tolerance happens to do no harm here.

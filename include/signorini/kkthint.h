@@ -8,6 +8,9 @@
 //      their limit (then: the high-contrast preset) or at the residual's round-off floor (then: nothing
 //      to do, double precision gives no more);
 //  (c) a KKT residual larger than the residual reached permits: what was measured, and what to try.
+// Where the conditions on Gamma_C hold and the stationarity off it does not, the warning names the cause
+// the same way: the round-off floor (the load small against the terms of A u), loosened options, or the
+// limit of the steps the checks add.
 // Otherwise the KKT residual is what the default stopping test permits on this mesh (the pressure divides
 // the reaction by a boundary measure of about h^(d-1), so the permitted residual grows under refinement):
 // the solve is as converged as it was asked to be, and nothing is printed.
@@ -30,8 +33,8 @@ PetscErrorCode MeshAspectRatio(DM mesh, PetscReal *aspect);
 // (longest edge over smallest height: 2 for the right triangles of a box mesh). Collective.
 PetscErrorCode MeasureStiffness(const Space &space, const System &sys, PetscReal *kappaContrast, PetscReal *aspect);
 
-// Prints the warning (once, on rank 0) when r.kktRelative > tolerance and the cause is one of (a) to (c).
-// Collective.
+// Prints the warning (once, on rank 0) when r.kktRelative > tolerance and the cause is one of (a) to (c), or
+// when only the stationarity misses it. Collective.
 PetscErrorCode KKTHint(const Space &space, const System &sys, const SolveResult &r, PetscReal tolerance);
 
 } // namespace signorini
