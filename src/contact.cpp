@@ -546,12 +546,14 @@ PetscErrorCode MeasureKKTFromResidual(const Space &space, const System &sys, Vec
   PetscCall(VecGetArrayRead(sys.load, &fa));
   PetscCall(VecGetArrayRead(sys.b, &ba));
   PetscReal minGap = PETSC_MAX_REAL, minP = PETSC_MAX_REAL, minM = PETSC_MAX_REAL, maxComp = 0, maxP = 0, maxGap = 0, maxU = 0, maxFree = 0, maxLoad = 0, maxAu = 0;
+  PetscReal lowU = PETSC_MAX_REAL, highU = -PETSC_MAX_REAL;
   std::vector<char> isContact(space.numOwned, 0);
   for (PetscInt i : space.contactOwned) isContact[i] = 1;
   std::vector<char> isDirichlet(space.numOwned, 0);
   for (PetscInt i : space.dirichletOwned) isDirichlet[i] = 1;
   for (PetscInt i = 0; i < space.numOwned; ++i) {
     maxU    = std::max(maxU, std::fabs(PetscRealPart(ua[i])));
+    lowU    = std::min(lowU, PetscRealPart(ua[i])), highU = std::max(highU, PetscRealPart(ua[i]));
     maxLoad = std::max(maxLoad, loadFactor * std::fabs(PetscRealPart(fa[i])));
     if (!isContact[i] && !isDirichlet[i]) maxFree = std::max(maxFree, std::fabs(PetscRealPart(ra[i])));
     if (!isDirichlet[i]) maxAu = std::max(maxAu, std::fabs(PetscRealPart(ra[i] + ba[i]))); // (A u)_i
@@ -577,9 +579,9 @@ PetscErrorCode MeasureKKTFromResidual(const Space &space, const System &sys, Vec
   PetscCall(VecRestoreArrayRead(res, &ra));
   PetscCall(VecRestoreArrayRead(sys.load, &fa));
   PetscCall(VecRestoreArrayRead(sys.b, &ba));
-  PetscReal mins[3] = {minGap, minP, minM}, maxs[7] = {maxComp, maxP, maxGap, maxU, maxFree, maxLoad, maxAu};
-  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, mins, 3, MPIU_REAL, MPI_MIN, comm));
-  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, maxs, 7, MPIU_REAL, MPI_MAX, comm));
+  PetscReal mins[4] = {minGap, minP, minM, lowU}, maxs[8] = {maxComp, maxP, maxGap, maxU, maxFree, maxLoad, maxAu, highU};
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, mins, 4, MPIU_REAL, MPI_MIN, comm));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, maxs, 8, MPIU_REAL, MPI_MAX, comm));
   // Relative to the load, or without one (u driven by u_D or psi alone) to the terms A u it balances.
   const PetscReal stationScale = maxs[5] > 0 ? maxs[5] : maxs[6];
   r.stationarity               = stationScale > 0 ? maxs[4] / stationScale : 0;
@@ -590,7 +592,7 @@ PetscErrorCode MeasureKKTFromResidual(const Space &space, const System &sys, Vec
   r.pressureMax     = maxs[1];
   r.gapMax          = maxs[2];
   // Active: u = psi up to round-off relative to the size of u (the solver puts active DOFs exactly on psi).
-  const PetscReal tol = ActiveTolerance(maxs[3]);
+  const PetscReal tol = ActiveTolerance(mins[3], maxs[7]);
   PetscInt        active = 0;
   for (PetscReal g : gaps) active += g <= tol;
   PetscCallMPI(MPI_Allreduce(&active, &r.active, 1, MPIU_INT, MPI_SUM, comm));
@@ -835,7 +837,7 @@ PetscErrorCode ContactFields(const Space &space, const Problem &problem, const S
   Vec                measure;
   const PetscScalar *ua, *ma;
   PetscScalar       *la, *pa, *aa;
-  PetscReal          maxU;
+  PetscReal          minU, maxU;
   PetscFunctionBeginUser;
   PetscCall(VecDuplicate(u, &measure));
   PetscCall(ContactLowerBound(space, problem, psi));
@@ -843,8 +845,9 @@ PetscErrorCode ContactFields(const Space &space, const Problem &problem, const S
   PetscCall(MatMult(sys.A, u, pressure));
   PetscCall(VecAXPY(pressure, -1.0, sys.b));
   PetscCall(VecSet(active, 0));
-  PetscCall(VecNorm(u, NORM_INFINITY, &maxU));
-  const PetscReal tol = ActiveTolerance(maxU); // the rule of MeasureKKT's active count
+  PetscCall(VecMin(u, NULL, &minU));
+  PetscCall(VecMax(u, NULL, &maxU));
+  const PetscReal tol = ActiveTolerance(minU, maxU); // the rule of MeasureKKT's active count
   std::vector<char> onContact(space.numOwned, 0);
   for (PetscInt i : space.contactOwned) onContact[i] = 1;
   PetscCall(VecGetArrayRead(u, &ua));

@@ -77,10 +77,11 @@ struct CoarseArrays {
     PetscCall(DMGlobalToLocal(space.dm, uH, INSERT_VALUES, locU));
     PetscCall(VecGetArrayRead(locU, &u));
     if (lowerH) {
-      PetscReal umax;
-      // Active as the contact solve counts it, relative to the size of u.
-      PetscCall(VecNorm(uH, NORM_INFINITY, &umax));
-      tol = ActiveTolerance(umax);
+      PetscReal umin, umax;
+      // Active as the contact solve counts it.
+      PetscCall(VecMin(uH, NULL, &umin));
+      PetscCall(VecMax(uH, NULL, &umax));
+      tol = ActiveTolerance(umin, umax);
       PetscCall(DMGetLocalVector(space.dm, &locL));
       PetscCall(DMGlobalToLocal(space.dm, lowerH, INSERT_VALUES, locL));
       PetscCall(VecGetArrayRead(locL, &lower));

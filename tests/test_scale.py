@@ -15,7 +15,8 @@ on 1 and 2 ranks: the same Newton and KSP iterations on the finest level and act
 levels stop on an estimate of their algebraic error, which sees the rounding of the prolongated u ~ c: 1.5e-8
 at c = 1e8), no warning, the stationarity and KKT checks within -kkt_tolerance, the energy of c = 0 to
 1e-14 c + 1e-12 (chi(1) is 0 up to the round-off of the assembled load, about 1e-15, which c multiplies) and
-the estimate to 1e-2 relative (computed from u ~ c, whose rounding reaches its gradients: 5e-4 at c = 1e8). Before the shift (datascale.h), c = 1e8 ended at the round-off floor after 10
+the estimate to 1e-2 relative (computed from u ~ c, whose rounding reaches its gradients: 5e-4 at c = 1e8);
+the -output active field as at c = 0. Before the shift (datascale.h), c = 1e8 ended at the round-off floor after 10
 added Newton steps, with stationarity 1.6e-3, KKT 1.2e-5, 6 DOFs more counted active and J = -252.9 for -0.4617."""
 import os
 import tempfile
@@ -94,6 +95,21 @@ for space in ["p1", "cr"]:
                     "%s: stationarity %.1e, KKT %.1e" % (label, s["stationarity"], s["kkt"]["relative"]))
             c.check(abs(s["energy"] - base["energy"]) <= 1e-14 * float(offset) + 1e-12 and abs(s["estimate"]["eta"] / base["estimate"]["eta"] - 1) <= 1e-2,
                     "%s: J %.12e (c = 0: %.12e), eta %.6e (%.6e)" % (label, s["energy"], base["energy"], s["estimate"]["eta"], base["estimate"]["eta"]))
+# The output's active field follows the same rule (relative to how much u varies, not to its size: at c = 1e8
+# the size counted a DOF 1e-2 off psi as active, CR 21 of 64 for the 20 of c = 0). The field is written per
+# contact face (P1: at both vertices of each face), so compared with the same field at c = 0.
+import h5py  # noqa: E402 (run/setup installs python3-h5py)
+for space in ["p1", "cr"]:
+    with tempfile.TemporaryDirectory() as tmp:
+        written, counted = [], []
+        for offset in ["0", "1e8"]:
+            out = os.path.join(tmp, "u%s.h5" % offset)
+            _, _, _, s = run(scene("paper-5.1") + ["-box_faces", "64", "-space", space, "-u_D", offset, "-psi", offset, "-output", out])
+            with h5py.File(out, "r") as f:
+                written.append(int(round(f["/contact/active"][:].sum())))
+            counted.append(s["kkt"]["active"])
+        c.check(written[0] == written[1] and counted[0] == counted[1],
+                "paper-5.1 %s N = 64, u_D = psi = 0 and 1e8: active field sums %s in -output, %s active DOFs counted" % (space, written, counted))
 
 # Out of range: one error line, exit status 1, no summary file.
 # A load of 1e-320 underflows in every quadrature contribution (it would give u = 0): refused in assembly.

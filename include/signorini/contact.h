@@ -80,10 +80,14 @@ PetscErrorCode SolverOptionsHelp(MPI_Comm comm);
 // Writes u_h, psi and the contact pressure at every contact DOF as CSV (x, y[, z], u, psi, pressure),
 // sorted by coordinates, gathered on rank 0: the free boundary seen along Gamma_C.
 PetscErrorCode WriteContactProfile(const Space &space, const Problem &problem, const System &sys, Vec u, const std::string &file);
-// A contact DOF counts as active where u - psi <= ActiveTolerance(max |u|): the solver puts active DOFs
-// exactly on psi, so round-off relative to the size of u is enough (and nothing absolute, so that the
-// count does not depend on the size of the data).
-inline PetscReal ActiveTolerance(PetscReal maxAbsU) { return 1e-10 * maxAbsU; }
+// A contact DOF counts as active where u - psi <= ActiveTolerance(min u, max u): the solver puts active DOFs
+// exactly on psi, so round-off relative to how much u varies is enough, and a few roundings of values of
+// its size (nothing absolute, so that the count does not depend on the size of the data; not relative to
+// the size of u alone, which would count DOFs 1e-2 off psi as active where u_D and psi are 1e8).
+inline PetscReal ActiveTolerance(PetscReal umin, PetscReal umax)
+{
+  return 1e-10 * (umax - umin) + 4 * PETSC_MACHINE_EPSILON * PetscMax(PetscAbsReal(umin), PetscAbsReal(umax));
+}
 // psi at contact DOFs and -infinity elsewhere (a global vector of the space): the lower bound of K_h.
 PetscErrorCode ContactLowerBound(const Space &space, const Problem &problem, Vec lower);
 // The boundary measure each contact DOF carries (turns a reaction into a pressure), 0 elsewhere.
@@ -107,7 +111,7 @@ PetscErrorCode Solve(const Space &space, const Problem &problem, const System &s
 // are the same in any). lower and measure (ContactMeasure) null: the stationarity only. Collective.
 PetscErrorCode MeasureKKTFromResidual(const Space &space, const System &sys, Vec u, Vec res, PetscReal loadFactor, Vec lower, Vec measure, SolveResult &r);
 // For the output, global vectors of the space that are 0 off Gamma_C: psi, the contact pressure
-// (A u - b) / measure (as in the KKT check), and the active set (1 where u - psi is at most ActiveTolerance(max|u|),
+// (A u - b) / measure (as in the KKT check), and the active set (1 where u - psi is at most ActiveTolerance(min u, max u),
 // the rule of SolveResult::active).
 PetscErrorCode ContactFields(const Space &space, const Problem &problem, const System &sys, Vec u, Vec psi, Vec pressure, Vec active);
 
