@@ -8,9 +8,9 @@
 //      their limit (then: the high-contrast preset) or at the residual's round-off floor (then: nothing
 //      to do, double precision gives no more);
 //  (c) a KKT residual larger than the residual reached permits: what was measured, and what to try.
-// Where the conditions on Gamma_C hold and the stationarity off it does not, the warning names the cause
-// the same way: the round-off floor (the load small against the terms of A u), loosened options, or the
-// limit of the steps the checks add.
+// Where the conditions on Gamma_C hold (or there is no contact part: the linear solve) and the stationarity
+// on the free DOFs does not, the warning names the cause the same way: the round-off floor (the load small
+// against the terms of A u), loosened options, or the limit of the steps or solves the checks add.
 // Otherwise the KKT residual is what the default stopping test permits on this mesh (the pressure divides
 // the reaction by a boundary measure of about h^(d-1), so the permitted residual grows under refinement):
 // the solve is as converged as it was asked to be, and nothing is printed.
