@@ -76,6 +76,16 @@ PetscErrorCode ContactLowerBound(const Space &space, const Problem &problem, Vec
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode ActiveToleranceOf(Vec u, PetscReal *tol)
+{
+  PetscReal umin, umax;
+  PetscFunctionBeginUser;
+  PetscCall(VecMin(u, NULL, &umin));
+  PetscCall(VecMax(u, NULL, &umax));
+  *tol = ActiveTolerance(umin, umax);
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode ContactMeasure(const Space &space, const Problem &problem, Vec measure)
 {
   Vec          loc;
@@ -848,7 +858,7 @@ PetscErrorCode ContactFields(const Space &space, const Problem &problem, const S
   Vec                measure;
   const PetscScalar *ua, *ma;
   PetscScalar       *la, *pa, *aa;
-  PetscReal          minU, maxU;
+  PetscReal          tol;
   PetscFunctionBeginUser;
   PetscCall(VecDuplicate(u, &measure));
   PetscCall(ContactLowerBound(space, problem, psi));
@@ -856,9 +866,7 @@ PetscErrorCode ContactFields(const Space &space, const Problem &problem, const S
   PetscCall(MatMult(sys.A, u, pressure));
   PetscCall(VecAXPY(pressure, -1.0, sys.b));
   PetscCall(VecSet(active, 0));
-  PetscCall(VecMin(u, NULL, &minU));
-  PetscCall(VecMax(u, NULL, &maxU));
-  const PetscReal tol = ActiveTolerance(minU, maxU); // the rule of MeasureKKT's active count
+  PetscCall(ActiveToleranceOf(u, &tol)); // the rule of MeasureKKT's active count
   std::vector<char> onContact(space.numOwned, 0);
   for (PetscInt i : space.contactOwned) onContact[i] = 1;
   PetscCall(VecGetArrayRead(u, &ua));

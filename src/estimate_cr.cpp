@@ -324,10 +324,8 @@ PetscErrorCode ReconstructCR(const Space &space, const Problem &problem, const S
   FluxesAndVertexSums(space, problem, sys, a, r, vdata, error);
   // The active contact faces (u_h - psi at the midpoint within the solver's ActiveTolerance) mark their
   // vertices, where v may be held at psi (Reconstruction::pinned).
-  PetscReal minU, maxU;
-  PetscCall(VecMin(u, NULL, &minU));
-  PetscCall(VecMax(u, NULL, &maxU));
-  const PetscReal activeTol = ActiveTolerance(minU, maxU);
+  PetscReal activeTol;
+  PetscCall(ActiveToleranceOf(u, &activeTol));
   for (const BoundaryFace &bf : space.boundary) {
     if (space.kindLocal[bf.dof] != kContact) continue;
     PetscReal x[3];

@@ -77,11 +77,7 @@ struct CoarseArrays {
     PetscCall(DMGlobalToLocal(space.dm, uH, INSERT_VALUES, locU));
     PetscCall(VecGetArrayRead(locU, &u));
     if (lowerH) {
-      PetscReal umin, umax;
-      // Active as the contact solve counts it.
-      PetscCall(VecMin(uH, NULL, &umin));
-      PetscCall(VecMax(uH, NULL, &umax));
-      tol = ActiveTolerance(umin, umax);
+      PetscCall(ActiveToleranceOf(uH, &tol)); // active as the contact solve counts it
       PetscCall(DMGetLocalVector(space.dm, &locL));
       PetscCall(DMGlobalToLocal(space.dm, lowerH, INSERT_VALUES, locL));
       PetscCall(VecGetArrayRead(locL, &lower));

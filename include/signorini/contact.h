@@ -88,6 +88,8 @@ inline PetscReal ActiveTolerance(PetscReal umin, PetscReal umax)
 {
   return 1e-10 * (umax - umin) + 4 * PETSC_MACHINE_EPSILON * PetscMax(PetscAbsReal(umin), PetscAbsReal(umax));
 }
+// ActiveTolerance of the values of the global vector u. Collective.
+PetscErrorCode ActiveToleranceOf(Vec u, PetscReal *tol);
 // psi at contact DOFs and -infinity elsewhere (a global vector of the space): the lower bound of K_h.
 PetscErrorCode ContactLowerBound(const Space &space, const Problem &problem, Vec lower);
 // The boundary measure each contact DOF carries (turns a reaction into a pressure), 0 elsewhere.
