@@ -858,7 +858,7 @@ PetscErrorCode CarryLabels(DM coarse, DM fine, const Coarse &m, const Fine &f)
         for (PetscInt t = children[q - m.cS]; t < children[q - m.cS + 1]; ++t) *at++ = t;
       if (q >= m.fS && q < m.fE) at = std::copy(faces.begin() + start[q - m.fS], faces.begin() + start[q - m.fS + 1], at);
     }
-    if (!std::is_sorted(pts, pts + count)) std::sort(pts, pts + count);
+    SortDistinctPoints(pts, count, f.End());
     PetscCall(ISCreateGeneral(PETSC_COMM_SELF, count, pts, PETSC_OWN_POINTER, &is));
     PetscCall(DMLabelSetStratumIS(label, value, is));
     PetscCall(ISDestroy(&is));

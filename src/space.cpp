@@ -3,6 +3,8 @@
 #include "signorini/layout.h"
 #include "signorini/mesh.h"
 
+#include <petsc/private/dmlabelimpl.h> // the strata of a label: sorted index sets or hash sets, see ReadCellSets
+
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -140,6 +142,31 @@ PetscErrorCode SpaceSectionDM(const Space &s, DM *dm)
   PetscFunctionReturn(0);
 }
 
+// The "Cell Sets" value of each cell cStart .. cEnd - 1. Where the label's strata are sorted index sets
+// (read from a file, refined uniformly or by bisection) each stratum's cells are copied in one pass; a
+// stratum still held as a hash set (after redistribution) would have to be sorted first, and there a
+// lookup per cell is cheaper than DMLabelGetValue's binary search through each sorted stratum.
+static PetscErrorCode ReadCellSets(DMLabel label, PetscInt cStart, PetscInt cEnd, std::vector<PetscInt> &cellSet)
+{
+  PetscFunctionBeginUser;
+  cellSet.assign(cEnd - cStart, label->defaultValue);
+  bool sorted = true;
+  for (PetscInt v = 0; v < label->numStrata; ++v) sorted = sorted && label->validIS[v];
+  if (!sorted) {
+    for (PetscInt c = cStart; c < cEnd; ++c) PetscCall(DMLabelGetValue(label, c, &cellSet[c - cStart]));
+    PetscFunctionReturn(0);
+  }
+  for (PetscInt v = 0; v < label->numStrata; ++v) {
+    const PetscInt *points;
+    PetscInt        n;
+    PetscCall(ISGetLocalSize(label->points[v], &n));
+    PetscCall(ISGetIndices(label->points[v], &points));
+    for (const PetscInt *p = std::lower_bound(points, points + n, cStart); p < points + n && *p < cEnd; ++p) cellSet[*p - cStart] = label->stratumValues[v];
+    PetscCall(ISRestoreIndices(label->points[v], &points));
+  }
+  PetscFunctionReturn(0);
+}
+
 // Cell tables: vertices, DOFs and Cell Sets values of each cell, and the vertex coordinates.
 static PetscErrorCode BuildCellTables(Space &s, PetscInt fStart)
 {
@@ -167,11 +194,7 @@ static PetscErrorCode BuildCellTables(Space &s, PetscInt fStart)
     const Space::Coords X = s.X(c);
     if (!SimplexIsValid(dim, X) && problem.empty()) problem = Format("mesh: cell %d (near (%g, %g)) is degenerate", (int)cell, (double)X[0], (double)X[1]);
   }
-  // Cell by cell: the adaptive meshes hold the label as a hash set, which a stratum's IS would first sort.
-  if (cellSets) {
-    s.cellSet.resize(nc);
-    for (PetscInt c = 0; c < nc; ++c) PetscCall(DMLabelGetValue(cellSets, s.cStart + c, &s.cellSet[c]));
-  }
+  if (cellSets) PetscCall(ReadCellSets(cellSets, s.cStart, s.cEnd, s.cellSet));
   PetscCall(CheckAll(PetscObjectComm((PetscObject)s.mesh), problem.empty(), problem));
   PetscFunctionReturn(0);
 }

@@ -16,6 +16,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -221,6 +222,26 @@ static PetscErrorCode TestCase(unit::Checker &ck, const std::string &name, const
   PetscFunctionReturn(0);
 }
 
+// SortDistinctPoints against std::sort (the independent computation), on sets dense enough for its bit per
+// point and sparse enough for the comparison sort, with points at both ends of the chart and past a word.
+static void TestSortDistinct(unit::Checker &ck)
+{
+  std::uint64_t state = 12345;
+  const auto    next  = [&state]() { return state = state * 6364136223846793005ULL + 1442695040888963407ULL, (PetscInt)(state >> 33); };
+  for (PetscInt end : {1, 63, 64, 65, 1000, 100003}) {
+    for (PetscInt every : {1, 2, 7, 100, 1000}) {
+      std::vector<PetscInt> p;
+      for (PetscInt q = 0; q < end; ++q)
+        if (q == 0 || q == end - 1 || next() % every == 0) p.push_back(q);
+      for (size_t i = p.size(); i > 1; --i) std::swap(p[i - 1], p[next() % i]);
+      std::vector<PetscInt> want = p;
+      std::sort(want.begin(), want.end());
+      SortDistinctPoints(p.data(), (PetscInt)p.size(), end);
+      ck.Check(p == want, Format("SortDistinctPoints of %zu points in [0, %d)", want.size(), (int)end), "differs from std::sort");
+    }
+  }
+}
+
 int main(int argc, char **argv)
 {
   PetscCall(PetscInitialize(&argc, &argv, NULL, NULL));
@@ -250,6 +271,7 @@ int main(int argc, char **argv)
   gmsh.name   = "gmsh square with Cell Sets";
   gmsh.o.file = std::string(SIGNORINI_TEST_DATA) + "/square.msh";
   cases.push_back(gmsh);
+  TestSortDistinct(ck);
   for (const Case &c : cases) {
     PetscErrorCode ierr = TestCase(ck, c.name, c.o);
     if (ierr) ck.PetscFailure(ierr, c.name);

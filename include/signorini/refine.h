@@ -70,4 +70,7 @@ PetscErrorCode SetVertexCoordinates(DM dm, PetscInt cdim, PetscInt vStart, Petsc
 // `stratum(fine label, value, points, number of points)` for each value with the coarse points carrying it.
 PetscErrorCode ForEachLabelStratum(DM coarse, DM fine, const std::function<PetscErrorCode(DMLabel, PetscInt, const PetscInt *, PetscInt)> &stratum);
 
+// Sorts n distinct mesh points of [0, end) in place (the points of a label stratum).
+void SortDistinctPoints(PetscInt *p, PetscInt n, PetscInt end);
+
 } // namespace signorini
