@@ -124,11 +124,12 @@ PetscErrorCode AdaptiveRefinement::Refine()
   PetscLogDouble        t0;
   DM                    fine;
   std::vector<PetscInt> parent;
+  std::vector<char> corners;
   Vec                   lowerH = nullptr;
   PetscFunctionBeginUser;
   PetscCall(StagePush(Stage::Adapt));
   PetscCall(PetscTime(&t0));
-  PetscCall(RefineMarked(mesh_, marked_, adapt_.refinement, &fine, &parent));
+  PetscCall(RefineMarked(mesh_, marked_, adapt_.refinement, &fine, &parent, &corners));
   PetscCall(SecondsSince(comm, t0, &row.refineSeconds));
 
   PetscCall(PetscTime(&t0));
@@ -136,8 +137,9 @@ PetscErrorCode AdaptiveRefinement::Refine()
     PetscCall(VecDuplicate(prev_.u, &lowerH));
     PetscCall(ContactLowerBound(prev_.space, problem_, lowerH));
   }
-  PetscCall(EvaluateOnCells(prev_.space, prev_.u, lowerH, fine, parent, carried_));
+  PetscCall(EvaluateOnCells(prev_.space, prev_.u, lowerH, fine, parent, carried_, &corners));
   PetscCall(VecDestroy(&lowerH));
+  std::vector<char>().swap(corners);
   PetscCall(SecondsSince(comm, t0, &row.transferSeconds));
   PetscCall(PetscTime(&t0));
   if (adapt_.referenceSteps > 0) { // kept for the errors against the reference

@@ -77,6 +77,8 @@ struct Coarse {
   std::vector<PetscInt>  cellVerts; // dim + 1 per cell, as v - vS
   std::vector<PetscInt>  cellEdges; // nce per cell, as e - eS: the edge of the cell's vertex pair k (kPair)
   std::vector<PetscInt>  cellFaces; // 3D: 4 per cell, coarse points: face k is the one opposite vertex k
+  std::vector<char>      tablePos;  // dim + 1 per cell: where vertex k stands in the cell tables of a space
+                                    // on this mesh (CellVertices: opposite face tablePos[k] of the cone)
   PetscInt               NumCells() const { return cE - cS; }
   PetscInt               NumVertices() const { return vE - vS; }
   PetscInt               NumEdges() const { return eE - eS; }
@@ -120,6 +122,7 @@ PetscErrorCode ReadCoarse(DM dm, Coarse &m)
       if (b[i] != v[0] && b[i] != v[1]) v[2] = b[i];
   };
   m.cellVerts.resize((m.dim + 1) * m.NumCells());
+  m.tablePos.resize((m.dim + 1) * m.NumCells());
   m.cellEdges.resize(m.nce * m.NumCells());
   if (m.dim == 3) m.cellFaces.resize(4 * m.NumCells());
   for (PetscInt c = m.cS; c < m.cE; ++c) {
@@ -148,14 +151,18 @@ PetscErrorCode ReadCoarse(DM dm, Coarse &m)
       return b;
     };
     const PetscInt *ccone = plex.Cone(c);
+    char           *pos   = &m.tablePos[(m.dim + 1) * (c - m.cS)];
     if (m.dim == 2)
-      for (PetscInt k = 0; k < 3; ++k) place(ccone[k] - m.eS);
+      for (PetscInt k = 0; k < 3; ++k) {
+        const int b = place(ccone[k] - m.eS), missed = 7 & ~b; // the vertex opposite edge k
+        if (missed == 1 || missed == 2 || missed == 4) pos[missed >> 1] = (char)k;
+      }
     else
       for (PetscInt f = 0; f < 4; ++f) {
         const PetscInt *fcone = plex.Cone(ccone[f]);
         int             on    = 0;
         for (PetscInt k = 0; k < 3; ++k) on |= place(fcone[k] - m.eS);
-        if (kOpposite[on] >= 0) m.cellFaces[4 * (c - m.cS) + kOpposite[on]] = ccone[f];
+        if (kOpposite[on] >= 0) m.cellFaces[4 * (c - m.cS) + kOpposite[on]] = ccone[f], pos[kOpposite[on]] = (char)f;
         else placed = -1;
       }
     PetscCheck(placed == (1 << m.nce) - 1, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: cell %" PetscInt_FMT " is not a simplex of %" PetscInt_FMT " distinct edges", c, m.nce);
@@ -867,9 +874,31 @@ PetscErrorCode CarryLabels(DM coarse, DM fine, const Coarse &m, const Fine &f)
   PetscFunctionReturn(0);
 }
 
+// Where each child's vertices lie in its parent, for the transfer (RefineMarkedBisection). A child's
+// vertex k in its cell tables is the one opposite face k of its cone, which CellCones makes the child's
+// face kPair[k] (2D: it misses vertex k + 2 mod 3) or kRefFace[k] (3D: it misses vertex 3 - k); its bits
+// (Children::on) name parent vertices in ReadCoarse's order, which tablePos turns into the parent's.
+void ChildCorners(const Coarse &m, const Fine &f, Children &ch, std::vector<char> &corners)
+{
+  const PetscInt nb       = m.dim + 1;
+  const int      from2[3] = {2, 0, 1}, from3[4] = {3, 2, 1, 0}; // the child's vertex opposite face k
+  const int     *from     = m.dim == 2 ? from2 : from3;
+  for (PetscInt t = 0; t < f.nc; ++t) { // in place: ch.on is not read after this
+    const char *pos = &m.tablePos[nb * f.parentOf[t]];
+    char       *on  = &ch.on[nb * t], was[4] = {on[0], on[1], on[2], nb == 4 ? on[3] : (char)0};
+    for (PetscInt k = 0; k < nb; ++k) {
+      const int b  = was[from[k]]; // without branches: the bits are as likely set as not
+      int       at = (b & 1) << pos[0] | (b >> 1 & 1) << pos[1] | (b >> 2 & 1) << pos[2];
+      if (nb == 4) at |= (b >> 3 & 1) << pos[3];
+      on[k] = (char)at;
+    }
+  }
+  corners.swap(ch.on);
+}
+
 } // namespace
 
-PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked, DM *fine, std::vector<PetscInt> *parent, bool allEdges)
+PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked, DM *fine, std::vector<PetscInt> *parent, bool allEdges, std::vector<char> *corners)
 {
   Coarse   m;
   Sharing  sh;
@@ -920,6 +949,7 @@ PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked,
   const char *name;
   PetscCall(PetscObjectGetName((PetscObject)coarse, &name));
   PetscCall(PetscObjectSetName((PetscObject)dm, name));
+  if (corners) ChildCorners(m, f, ch, *corners);
   if (parent) *parent = f.parentOf;
   *fine = dm;
   PetscCall(PetscLogEventEnd(ev[4], 0, 0, 0, 0));

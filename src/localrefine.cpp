@@ -97,12 +97,13 @@ PetscErrorCode RefineMarkedSBR(DM coarse, const std::vector<char> &marked, DM *f
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode RefineMarked(DM coarse, const std::vector<char> &marked, LocalRefinement how, DM *fine, std::vector<PetscInt> *parent)
+PetscErrorCode RefineMarked(DM coarse, const std::vector<char> &marked, LocalRefinement how, DM *fine, std::vector<PetscInt> *parent, std::vector<char> *corners)
 {
   PetscInt dim;
   PetscFunctionBeginUser;
   PetscCall(DMGetDimension(coarse, &dim));
-  if (how != LocalRefinement::SBR) PetscCall(RefineMarkedBisection(coarse, marked, fine, parent, how == LocalRefinement::BisectionAll));
+  if (corners) corners->clear();
+  if (how != LocalRefinement::SBR) PetscCall(RefineMarkedBisection(coarse, marked, fine, parent, how == LocalRefinement::BisectionAll, corners));
   else if (dim == 2) PetscCall(RefineMarkedSBR(coarse, marked, fine, parent));
   else SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)coarse), "option -adapt_refinement: sbr refines triangles only; use bisection or bisection_all for tetrahedra");
   PetscFunctionReturn(0);

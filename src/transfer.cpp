@@ -46,6 +46,31 @@ void ForEachFineDof(const Space &coarse, PetscInt numFine, const std::vector<Pet
   WithDim(coarse.dim, [&](auto D) { ForEachFineDofD<D>(coarse, numFine, parent, X, f); });
 }
 
+// ForEachFineDof where the fine cells come from bisection, whose corners (RefineMarkedBisection) say
+// where each fine vertex lies in its parent: the barycentric coordinates of every DOF point follow from
+// them, without the fine mesh's cones and coordinates and without solving for them in the parent.
+template <int D, class F>
+void ForEachFineDofPlacedD(const Space &coarse, const std::vector<PetscInt> &parent, const std::vector<char> &corners, F f)
+{
+  PetscReal      mu[4][4], corner[4][4], lambda[4];
+  const PetscInt numFine = (PetscInt)parent.size();
+  for (PetscInt i = 0; i <= D; ++i) DofLambda(coarse.element, D, i, mu[i]);
+  for (PetscInt c = 0; c < numFine; ++c) {
+    for (PetscInt j = 0; j <= D; ++j) {
+      const unsigned char on = corners[c * (D + 1) + j];
+      const PetscReal     w  = on == 1 || on == 2 || on == 4 || on == 8 ? 1 : 0.5; // a vertex, or an edge's midpoint
+      for (PetscInt k = 0; k <= D; ++k) corner[j][k] = on >> k & 1 ? w : 0;
+    }
+    for (PetscInt i = 0; i <= D; ++i) {
+      for (PetscInt k = 0; k <= D; ++k) {
+        lambda[k] = 0;
+        for (PetscInt j = 0; j <= D; ++j) lambda[k] += mu[i][j] * corner[j][k];
+      }
+      f(c, i, parent[c], lambda);
+    }
+  }
+}
+
 // Whether the point of barycentric coordinates lambda in coarse cell pc lies on coarse DOFs (at least
 // one) that are all active contact DOFs (aU, aL: local arrays of uH and its lower bound; tol:
 // ActiveTolerance). A CR point inside the cell lies on none (a fine contact DOF always lies on one).
@@ -219,21 +244,34 @@ PetscErrorCode MeshCells::Init(DM mesh)
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode EvaluateOnCells(const Space &coarse, Vec uH, Vec lowerH, DM fine, const std::vector<PetscInt> &parent, CellValues &cv)
+PetscErrorCode EvaluateOnCells(const Space &coarse, Vec uH, Vec lowerH, DM fine, const std::vector<PetscInt> &parent, CellValues &cv, const std::vector<char> *corners)
 {
-  CoarseArrays H(coarse);
-  MeshCells    cells;
+  CoarseArrays         H(coarse);
+  MeshCells            cells;
+  static PetscLogEvent event = 0; // -log_view, under the Adapt stage
   PetscFunctionBeginUser;
-  const PetscInt nb = coarse.dim + 1;
-  PetscCall(cells.Init(fine));
-  PetscCheck((PetscInt)parent.size() == cells.NumCells(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "parent map has %d entries for %d fine cells", (int)parent.size(), (int)cells.NumCells());
+  if (!event) PetscCall(PetscLogEventRegister("EvaluateOnCells", DM_CLASSID, &event));
+  PetscCall(PetscLogEventBegin(event, 0, 0, 0, 0));
+  const PetscInt nb      = coarse.dim + 1;
+  const bool     placed  = corners && !corners->empty();
+  PetscInt       numFine = (PetscInt)parent.size();
+  if (!placed) {
+    PetscCall(cells.Init(fine));
+    numFine = cells.NumCells();
+  } else {
+    PetscInt cStart, cEnd;
+    PetscCall(DMPlexGetHeightStratum(fine, 0, &cStart, &cEnd));
+    numFine = cEnd - cStart;
+    PetscCheck((PetscInt)corners->size() == nb * numFine, PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "%d corners for %d fine cells", (int)corners->size(), (int)numFine);
+  }
+  PetscCheck((PetscInt)parent.size() == numFine, PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "parent map has %d entries for %d fine cells", (int)parent.size(), (int)numFine);
   PetscCall(H.Get(uH, lowerH));
   cv.nb = nb;
-  cv.data.assign(cells.NumCells() * 2 * nb, 0);
-  PetscInt checked = -1;    // the last parent looked at for contact DOFs,
-  bool     contact = false; // whether it has any (most have none: their children's flags stay 0)
-  ForEachFineDof(coarse, cells.NumCells(), parent, [&](PetscInt c) { return cells.X(c); }, [&](PetscInt c, PetscInt i, PetscInt pc, const PetscReal *lambda) {
-    if (i == 0 && c + kAhead < cells.NumCells()) // the parent's values some cells ahead (its DOFs lie anywhere in uH)
+  cv.data.assign(numFine * 2 * nb, 0);
+  PetscInt   checked = -1;    // the last parent looked at for contact DOFs,
+  bool       contact = false; // whether it has any (most have none: their children's flags stay 0)
+  const auto at      = [&](PetscInt c, PetscInt i, PetscInt pc, const PetscReal *lambda) {
+    if (i == 0 && c + kAhead < numFine) // the parent's values some cells ahead (its DOFs lie anywhere in uH)
       for (PetscInt j = 0; j < nb; ++j) __builtin_prefetch(&H.u[coarse.Dofs(parent[c + kAhead])[j]]);
     cv.data[c * 2 * nb + i] = coarse.Value(pc, H.u, lambda);
     if (!lowerH) return;
@@ -242,8 +280,11 @@ PetscErrorCode EvaluateOnCells(const Space &coarse, Vec uH, Vec lowerH, DM fine,
       for (PetscInt j = 0; j < nb; ++j) contact = contact || coarse.kindLocal[coarse.Dofs(pc)[j]] == kContact;
     }
     if (contact) cv.data[c * 2 * nb + nb + i] = OnActiveContact(coarse, pc, lambda, H.u, H.lower, H.tol);
-  });
+  };
+  if (placed) WithDim(coarse.dim, [&](auto D) { ForEachFineDofPlacedD<D>(coarse, parent, *corners, at); });
+  else ForEachFineDof(coarse, numFine, parent, [&](PetscInt c) { return cells.X(c); }, at);
   PetscCall(H.Restore());
+  PetscCall(PetscLogEventEnd(event, 0, 0, 0, 0));
   PetscFunctionReturn(0);
 }
 

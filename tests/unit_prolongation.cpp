@@ -158,6 +158,7 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
   DM                fineDM = nullptr, coarseDM = nullptr, before = nullptr; // before: the fine mesh before its redistribution
   PetscSF           migration = nullptr;
   std::vector<PetscInt> parent; // of the fine mesh (before its redistribution)
+  std::vector<char> corners; // of the bisection (RefineMarked), by which the adaptive steps evaluate
   MeshInfo          info;
   MeshLevels        levels;
   Problem           problem;
@@ -182,7 +183,8 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
       PetscCall(DMPlexComputeCellGeometryFVM(coarseDM, c, &vol, x, NULL));
       marked.push_back(x[0] < 0.45);
     }
-    PetscCall(RefineMarked(coarseDM, marked, pc.how, &fineDM, &parent));
+    PetscCall(RefineMarked(coarseDM, marked, pc.how, &fineDM, &parent, &corners));
+    ck.Check(corners.empty() == (pc.how == LocalRefinement::SBR), tag + " the bisection gives its corners, PETSc's refine_sbr none");
     if (pc.refine == Refine::Redistributed) {
       DM dist;
       PetscCall(RedistributeMesh(fineDM, &dist, &migration));
@@ -220,12 +222,32 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
   const PetscInt               dim          = fine.dim;
   const std::vector<PetscReal> finePoints   = DofPoints(fine);
   const std::vector<PetscReal> coarsePoints = DofPoints(coarse);
+  // The evaluation on the fine cells by the bisection's corners against the one by their coordinates
+  // (independent: it locates each DOF point in its parent by geometry): the same values to round-off, the
+  // same active flags, for every function transferred below.
+  PetscReal  cornerError = 0;
+  PetscInt   cornerFlags = 0, cornerRuns = 0;
+  const auto compareCorners = [&](Vec uH, Vec lowerH) -> PetscErrorCode {
+    CellValues byCorners, byCoordinates;
+    PetscFunctionBeginUser;
+    if (corners.empty()) PetscFunctionReturn(0);
+    PetscCall(EvaluateOnCells(coarse, uH, lowerH, before ? before : fineDM, parent, byCorners, &corners));
+    PetscCall(EvaluateOnCells(coarse, uH, lowerH, before ? before : fineDM, parent, byCoordinates));
+    const size_t nb = coarse.Nb();
+    for (size_t k = 0; k < byCorners.data.size(); ++k) {
+      if (k % (2 * nb) < nb) cornerError = std::max(cornerError, std::fabs(byCorners.data[k] - byCoordinates.data[k]));
+      else cornerFlags += byCorners.data[k] != byCoordinates.data[k];
+    }
+    ++cornerRuns;
+    PetscFunctionReturn(0);
+  };
   // The coarse function uH onto the fine space: its values, and with lowerH its active set.
   const auto transfer = [&](Vec uH, Vec lowerH, Vec lowerh, Vec uh) -> PetscErrorCode {
     PetscFunctionBeginUser;
+    PetscCall(compareCorners(uH, lowerH));
     if (migration) {
       CellValues cv;
-      PetscCall(EvaluateOnCells(coarse, uH, lowerH, before, parent, cv));
+      PetscCall(EvaluateOnCells(coarse, uH, lowerH, before, parent, cv, &corners));
       PetscCall(MigrateCellValues(before, migration, fineDM, cv));
       PetscCall(ApplyCellValues(fine, cv, lowerH ? lowerh : nullptr, uh));
     } else {
@@ -315,6 +337,9 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
   PetscCall(VecCopy(uh, uRef)); // plain prolongation
   PetscCall(transfer(uH, lowerH, lowerh, uh));
   PetscCall(ProjectOntoConstraints(fineSys, fine.dirichletOwned, lowerh, uh));
+  cornerError = MaxOverRanks(comm, cornerError), cornerFlags = SumOverRanks(comm, cornerFlags), cornerRuns = SumOverRanks(comm, cornerRuns);
+  if (!corners.empty() || cornerRuns > 0)
+    ck.Check(cornerRuns > 0 && cornerError < 1e-13 && cornerFlags == 0, tag + " the bisection's corners place every fine DOF point as its coordinates do", "max difference %.3e, %d active flags differ, %d comparisons", (double)cornerError, (int)cornerFlags, (int)cornerRuns);
 
   // Expected, independently: a fine contact DOF is forced onto psi when the coarse contact DOFs that
   // support its point on Gamma_C (P1: the vertices of the coarse boundary face with a positive

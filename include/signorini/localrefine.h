@@ -16,14 +16,18 @@ namespace signorini {
 // By bisection of marked edges (2D and 3D; bisect.cpp).
 // allEdges: a marked cell marks all its edges (each marked triangle becomes 4 cells, h halves), not only its
 // longest (2 cells).
-PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked, DM *fine, std::vector<PetscInt> *parent, bool allEdges = false);
+// corners[c * (dim + 1) + k], when asked for: the vertices of parent[c] (bit j: its vertex j, both in the
+// order of the cell tables of a space, CellVertices) on which vertex k of fine cell c lies: one at a parent
+// vertex, two at the midpoint of their edge (the only points bisection makes).
+PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked, DM *fine, std::vector<PetscInt> *parent, bool allEdges = false, std::vector<char> *corners = nullptr);
 // By PETSc's skeleton-based refinement, DMPlexTransform "refine_sbr" (2D only; localrefine.cpp).
 PetscErrorCode RefineMarkedSBR(DM coarse, const std::vector<char> &marked, DM *fine, std::vector<PetscInt> *parent);
 // PETSc's refinement of `coarse` by a DMPlexTransform of `type`, restricted to the points of `active`
 // (value DM_ADAPT_REFINE; null: all), with the parent map as above when asked for.
 PetscErrorCode TransformRefine(DM coarse, DMPlexTransformType type, DMLabel active, DM *fine, std::vector<PetscInt> *parent);
-// The refinement of marked cells by one of the two (SBR: triangles only, an input error otherwise).
+// The refinement of marked cells by one of the two (SBR: triangles only, an input error otherwise), with
+// the corners of the bisection when asked for (SBR leaves them empty).
 enum class LocalRefinement { Bisection, BisectionAll, SBR };
-PetscErrorCode RefineMarked(DM coarse, const std::vector<char> &marked, LocalRefinement how, DM *fine, std::vector<PetscInt> *parent);
+PetscErrorCode RefineMarked(DM coarse, const std::vector<char> &marked, LocalRefinement how, DM *fine, std::vector<PetscInt> *parent, std::vector<char> *corners = nullptr);
 
 } // namespace signorini

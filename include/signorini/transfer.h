@@ -63,8 +63,10 @@ private:
   std::vector<PetscReal> x_; // dim per vertex (v - vStart)
   PetscInt               dim_ = 0, cStart_ = 0, cEnd_ = 0, vStart_ = 0;
 };
-// On the fine mesh alone (no space on it yet). Without lowerH no DOF is flagged active.
-PetscErrorCode EvaluateOnCells(const Space &coarse, Vec uH, Vec lowerH, DM fine, const std::vector<PetscInt> &parent, CellValues &cv);
+// On the fine mesh alone (no space on it yet). Without lowerH no DOF is flagged active. With the corners
+// of a bisection (RefineMarkedBisection) the DOF points are placed in their parents by them, else by the
+// fine mesh's coordinates.
+PetscErrorCode EvaluateOnCells(const Space &coarse, Vec uH, Vec lowerH, DM fine, const std::vector<PetscInt> &parent, CellValues &cv, const std::vector<char> *corners = nullptr);
 // Collective: the distribution of `mesh` by PETSc's parallel partitioner (PTScotch; nothing is gathered
 // on one rank): *dist is the redistributed mesh and *migration the star forest from the points of `mesh`
 // to those of *dist (both null on one rank).
