@@ -124,7 +124,7 @@ PetscErrorCode AdaptiveRefinement::Refine()
   PetscLogDouble        t0;
   DM                    fine;
   std::vector<PetscInt> parent;
-  std::vector<char> corners;
+  std::vector<char>     corners; // where the bisection put each child's vertices (EvaluateOnCells)
   Vec                   lowerH = nullptr;
   PetscFunctionBeginUser;
   PetscCall(StagePush(Stage::Adapt));

@@ -142,10 +142,10 @@ PetscErrorCode SpaceSectionDM(const Space &s, DM *dm)
   PetscFunctionReturn(0);
 }
 
-// The "Cell Sets" value of each cell cStart .. cEnd - 1. Where the label's strata are sorted index sets
-// (read from a file, refined uniformly or by bisection) each stratum's cells are copied in one pass; a
-// stratum still held as a hash set (after redistribution) would have to be sorted first, and there a
-// lookup per cell is cheaper than DMLabelGetValue's binary search through each sorted stratum.
+// The "Cell Sets" value of each cell cStart .. cEnd - 1. Where the label's strata are sorted index sets (as
+// the mesh reader, both refinements and the distribution leave them) each stratum's cells are copied in one
+// pass, instead of DMLabelGetValue's binary search through every stratum per cell; a stratum still held as
+// a hash set (points added one by one) would have to be sorted first, and there a lookup per cell is cheaper.
 static PetscErrorCode ReadCellSets(DMLabel label, PetscInt cStart, PetscInt cEnd, std::vector<PetscInt> &cellSet)
 {
   PetscFunctionBeginUser;

@@ -157,8 +157,8 @@ static PetscErrorCode TestCase(unit::Checker &ck, const ProlongationCase &pc)
   const std::string tag  = pc.name;
   DM                fineDM = nullptr, coarseDM = nullptr, before = nullptr; // before: the fine mesh before its redistribution
   PetscSF           migration = nullptr;
-  std::vector<PetscInt> parent; // of the fine mesh (before its redistribution)
-  std::vector<char> corners; // of the bisection (RefineMarked), by which the adaptive steps evaluate
+  std::vector<PetscInt> parent;  // of the fine mesh (before its redistribution)
+  std::vector<char>     corners; // of the bisection (RefineMarked), by which the adaptive steps evaluate
   MeshInfo          info;
   MeshLevels        levels;
   Problem           problem;
