@@ -566,14 +566,13 @@ PetscErrorCode MeasureKKTFromResidual(const Space &space, const System &sys, Vec
   PetscCall(VecGetArrayRead(res, &ra));
   PetscCall(VecGetArrayRead(sys.load, &fa));
   PetscCall(VecGetArrayRead(sys.b, &ba));
-  PetscReal minGap = PETSC_MAX_REAL, minP = PETSC_MAX_REAL, minM = PETSC_MAX_REAL, maxComp = 0, maxP = 0, maxGap = 0, maxU = 0, maxFree = 0, maxLoad = 0, maxAu = 0;
+  PetscReal minGap = PETSC_MAX_REAL, minP = PETSC_MAX_REAL, minM = PETSC_MAX_REAL, maxComp = 0, maxP = 0, maxGap = 0, maxFree = 0, maxLoad = 0, maxAu = 0;
   PetscReal lowU = PETSC_MAX_REAL, highU = -PETSC_MAX_REAL;
   std::vector<char> isContact(space.numOwned, 0);
   for (PetscInt i : space.contactOwned) isContact[i] = 1;
   std::vector<char> isDirichlet(space.numOwned, 0);
   for (PetscInt i : space.dirichletOwned) isDirichlet[i] = 1;
   for (PetscInt i = 0; i < space.numOwned; ++i) {
-    maxU    = std::max(maxU, std::fabs(PetscRealPart(ua[i])));
     lowU    = std::min(lowU, PetscRealPart(ua[i])), highU = std::max(highU, PetscRealPart(ua[i]));
     maxLoad = std::max(maxLoad, loadFactor * std::fabs(PetscRealPart(fa[i])));
     if (!isContact[i] && !isDirichlet[i]) maxFree = std::max(maxFree, std::fabs(PetscRealPart(ra[i])));
@@ -600,9 +599,10 @@ PetscErrorCode MeasureKKTFromResidual(const Space &space, const System &sys, Vec
   PetscCall(VecRestoreArrayRead(res, &ra));
   PetscCall(VecRestoreArrayRead(sys.load, &fa));
   PetscCall(VecRestoreArrayRead(sys.b, &ba));
-  PetscReal mins[4] = {minGap, minP, minM, lowU}, maxs[8] = {maxComp, maxP, maxGap, maxU, maxFree, maxLoad, maxAu, highU};
+  PetscReal mins[4] = {minGap, minP, minM, lowU}, maxs[7] = {maxComp, maxP, maxGap, highU, maxFree, maxLoad, maxAu};
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, mins, 4, MPIU_REAL, MPI_MIN, comm));
-  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, maxs, 8, MPIU_REAL, MPI_MAX, comm));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, maxs, 7, MPIU_REAL, MPI_MAX, comm));
+  const PetscReal minU = mins[3], maxU = maxs[3], maxAbsU = std::max(-minU, maxU);
   // Relative to the load, or without one (u driven by u_D or psi alone) to the terms A u it balances.
   const PetscReal stationScale = maxs[5] > 0 ? maxs[5] : maxs[6];
   r.stationarity               = stationScale > 0 ? maxs[4] / stationScale : 0;
@@ -612,12 +612,12 @@ PetscErrorCode MeasureKKTFromResidual(const Space &space, const System &sys, Vec
   r.complementarity = maxs[0];
   r.pressureMax     = maxs[1];
   r.gapMax          = maxs[2];
-  // Active: u = psi up to round-off relative to the size of u (the solver puts active DOFs exactly on psi).
-  const PetscReal tol = ActiveTolerance(mins[3], maxs[7]);
+  // Active: u = psi up to round-off (the solver puts active DOFs exactly on psi; ActiveTolerance).
+  const PetscReal tol = ActiveTolerance(minU, maxU);
   PetscInt        active = 0;
   for (PetscReal g : gaps) active += g <= tol;
   PetscCallMPI(MPI_Allreduce(&active, &r.active, 1, MPIU_INT, MPI_SUM, comm));
-  const PetscReal scaleU = std::max(maxs[3], r.gapMax);
+  const PetscReal scaleU = std::max(maxAbsU, r.gapMax);
   r.kktRelative          = scaleU > 0 ? std::max((PetscReal)0, -r.primal) / scaleU : 0;
   if (!(r.active > 0 && r.pressureMax > 0)) PetscFunctionReturn(0);
   r.kktRelative = std::max({r.kktRelative, -r.dual / r.pressureMax, r.complementarity / (r.pressureMax * std::max(r.gapMax, scaleU))});

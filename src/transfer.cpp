@@ -252,19 +252,14 @@ PetscErrorCode EvaluateOnCells(const Space &coarse, Vec uH, Vec lowerH, DM fine,
   PetscFunctionBeginUser;
   if (!event) PetscCall(PetscLogEventRegister("EvaluateOnCells", DM_CLASSID, &event));
   PetscCall(PetscLogEventBegin(event, 0, 0, 0, 0));
-  const PetscInt nb      = coarse.dim + 1;
-  const bool     placed  = corners && !corners->empty();
-  PetscInt       numFine = (PetscInt)parent.size();
-  if (!placed) {
-    PetscCall(cells.Init(fine));
-    numFine = cells.NumCells();
-  } else {
-    PetscInt cStart, cEnd;
-    PetscCall(DMPlexGetHeightStratum(fine, 0, &cStart, &cEnd));
-    numFine = cEnd - cStart;
-    PetscCheck((PetscInt)corners->size() == nb * numFine, PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "%d corners for %d fine cells", (int)corners->size(), (int)numFine);
-  }
+  const PetscInt nb     = coarse.dim + 1;
+  const bool     placed = corners && !corners->empty();
+  PetscInt       cStart, cEnd;
+  PetscCall(DMPlexGetHeightStratum(fine, 0, &cStart, &cEnd));
+  const PetscInt numFine = cEnd - cStart;
   PetscCheck((PetscInt)parent.size() == numFine, PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "parent map has %d entries for %d fine cells", (int)parent.size(), (int)numFine);
+  PetscCheck(!placed || (PetscInt)corners->size() == nb * numFine, PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "%d corners for %d fine cells", (int)corners->size(), (int)numFine);
+  if (!placed) PetscCall(cells.Init(fine)); // the coordinates, by which the DOF points are placed
   PetscCall(H.Get(uH, lowerH));
   cv.nb = nb;
   cv.data.assign(numFine * 2 * nb, 0);
