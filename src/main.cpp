@@ -213,6 +213,7 @@ static PetscErrorCode Run(MPI_Comm comm)
   report.cells         = meshInfo.cells;
   report.cellsPerRank  = meshInfo.cellsPerRank;
   report.edgeCut       = meshInfo.edgeCut;
+  report.boundary      = s.problem.coverage;
   report.dofs          = space.numGlobal;
   report.dirichletDofs = space.numDirichletGlobal;
   report.contactDofs   = space.numContactGlobal;

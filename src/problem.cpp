@@ -67,24 +67,79 @@ std::string MissingPartMessage(const char *option, PetscInt value)
   return Format("option %s: boundary part %d does not exist on the mesh (no face carries that \"Face Sets\" value)", option, (int)value);
 }
 
+// The faces of the domain's boundary in no named part, where kappa du/dn = 0 holds (the natural
+// condition): right where it is meant (a symmetry plane), a silent wrong answer where a part was forgotten
+// or mistyped, so the run says so. A face with one cell on this rank lies on the domain's boundary unless
+// another rank holds its other cell, i.e. unless it is in the point SF (the mesh has no overlap).
+static PetscErrorCode CountUnnamedBoundary(DM dm, const std::vector<char> &named, BoundaryCoverage &b)
+{
+  MPI_Comm           comm = PetscObjectComm((PetscObject)dm);
+  PetscSF            sf;
+  PetscInt           pStart, pEnd, fStart, fEnd, nroots, nleaves;
+  const PetscInt    *leaves, *degree = nullptr;
+  const PetscSFNode *remotes;
+  PetscMPIInt        rank;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  PetscCall(DMPlexGetChart(dm, &pStart, &pEnd));
+  PetscCall(DMPlexGetHeightStratum(dm, 1, &fStart, &fEnd));
+  PetscCall(DMGetPointSF(dm, &sf));
+  PetscCall(PetscSFGetGraph(sf, &nroots, &nleaves, &leaves, &remotes));
+  std::vector<char> shared(pEnd - pStart, 0);
+  if (nroots >= 0) {
+    for (PetscInt i = 0; i < nleaves; ++i) shared[(leaves ? leaves[i] : i) - pStart] = 1;
+    PetscCall(PetscSFComputeDegreeBegin(sf, &degree));
+    PetscCall(PetscSFComputeDegreeEnd(sf, &degree));
+    for (PetscInt q = pStart; q < pEnd; ++q)
+      if (degree[q - pStart] > 0) shared[q - pStart] = 1;
+  }
+  PetscInt  counts[2] = {0, 0}, first = -1; // boundary faces, unnamed ones; the first unnamed face
+  for (PetscInt f = fStart; f < fEnd; ++f) {
+    PetscInt nsupp;
+    PetscCall(DMPlexGetSupportSize(dm, f, &nsupp));
+    if (nsupp != 1 || shared[f - pStart]) continue;
+    ++counts[0];
+    if (named[f - pStart]) continue;
+    ++counts[1];
+    if (first < 0) first = f;
+  }
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, counts, 2, MPIU_INT, MPI_SUM, comm));
+  b.faces = counts[0], b.unnamed = counts[1];
+  // An example location, from the lowest rank that has one.
+  PetscMPIInt from = first >= 0 ? rank : PETSC_MPI_INT_MAX;
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &from, 1, MPI_INT, MPI_MIN, comm));
+  if (from == PETSC_MPI_INT_MAX) PetscFunctionReturn(0);
+  if (rank == from) PetscCall(DMPlexComputeCellGeometryFVM(dm, first, NULL, b.example, NULL));
+  PetscCallMPI(MPI_Bcast(b.example, 3, MPIU_REAL, from, comm));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode ProblemCheckMesh(DM dm, Problem &p)
 {
   MPI_Comm              comm = PetscObjectComm((PetscObject)dm);
-  PetscInt              dim;
+  PetscInt              dim, pStart, pEnd;
   DMLabel               faceSets;
   std::vector<PetscInt> faces;
   PetscFunctionBeginUser;
   PetscCall(DMGetDimension(dm, &dim));
   PetscCall(ProblemSetUp(comm, dim, p));
   PetscCall(DMGetLabel(dm, "Face Sets", &faceSets));
+  PetscCall(DMPlexGetChart(dm, &pStart, &pEnd));
+  std::vector<char> named(pEnd - pStart, 0);
   const std::pair<const char *, const std::vector<PetscInt> *> parts[] = {{"-bc_dirichlet", &p.dirichlet}, {"-bc_neumann", &p.neumann}, {"-bc_contact", &p.contact}};
   for (const auto &part : parts)
     for (PetscInt value : *part.second) {
       PetscCall(LabelFaces(dm, faceSets, value, faces));
+      for (PetscInt f : faces) named[f - pStart] = 1;
       PetscInt local = (PetscInt)faces.size(), global;
       PetscCallMPI(MPI_Allreduce(&local, &global, 1, MPIU_INT, MPI_SUM, comm));
       if (global == 0) SIGNORINI_INPUT_ERROR(comm, "%s", MissingPartMessage(part.first, value).c_str());
     }
+  PetscCall(CountUnnamedBoundary(dm, named, p.coverage));
+  const BoundaryCoverage &b = p.coverage;
+  if (b.unnamed > 0)
+    PetscCall(PetscPrintf(comm, "note: %d of the %d boundary faces of the coarse mesh %s in no part of -bc_dirichlet, -bc_neumann, -bc_contact (one near (%s)): kappa du/dn = 0 there\n", (int)b.unnamed, (int)b.faces, b.unnamed == 1 ? "is" : "are",
+                          (dim == 2 ? Format("%g, %g", (double)b.example[0], (double)b.example[1]) : Format("%g, %g, %g", (double)b.example[0], (double)b.example[1], (double)b.example[2])).c_str()));
   PetscFunctionReturn(0);
 }
 

@@ -1,10 +1,11 @@
 """Gmsh meshes (tests/data/square.msh, tests/data/cube.msh): the physical groups become the boundary parts
 and the "Cell Sets" used by kappa. A linear exact solution is reproduced to round-off on both meshes with
 both elements, on 1 and 2 ranks; and a kappa that jumps between the two cell sets of the square gives the
-piecewise linear exact solution with continuous flux, again to round-off."""
+piecewise linear exact solution with continuous flux, again to round-off. A boundary part left out of the
+options gets kappa du/dn = 0 and a note with the number of its faces, counted independently from the file."""
 import os
 
-from harness import ROOT, Checker, run
+from harness import ROOT, Checker, rel, run
 
 c = Checker()
 DATA = os.path.join(ROOT, "tests", "data")
@@ -76,4 +77,46 @@ for space in ["p1", "cr"]:
 # The same problem with kappa = 1 everywhere is not solved by that u: the cell sets really are used.
 _, _, _, s = run([a if a != "cell_set == 1 ? 1 : 100" else "1" for a in argsj] + ["-space", "cr"])
 c.check(s["error"]["l2"] > 1e-3, "square kappa = 1 (no jump): error %.2e is not round-off" % s["error"]["l2"])
+
+
+def file_boundary(path, named):
+    """From the file itself (an independent count): the boundary faces (faces of one cell) of the mesh, and
+    those not listed as a lower-dimensional element with a physical tag in `named`."""
+    lines = open(path).read().split("\n")
+    start = lines.index("$Elements")
+    elements = [[int(v) for v in line.split()] for line in lines[start + 2:start + 2 + int(lines[start + 1])]]
+    cell = 4 if any(p[1] == 4 for p in elements) else 2  # Gmsh types: 4 tetrahedron, 2 triangle
+    count, tagged = {}, {}
+    for p in elements:
+        kind, ntags, nodes = p[1], p[2], p[3 + p[2]:]
+        if kind == cell:
+            for skip in range(len(nodes)):
+                face = tuple(sorted(nodes[:skip] + nodes[skip + 1:]))
+                count[face] = count.get(face, 0) + 1
+        elif ntags > 0:
+            tagged.setdefault(tuple(sorted(nodes)), set()).add(p[3])
+    boundary = [f for f, k in count.items() if k == 1]
+    return len(boundary), sum(1 for f in boundary if not tagged.get(f, set()) & named)
+
+
+# A boundary part left out of the options: kappa du/dn = 0 holds on its faces (the natural condition), and the
+# run says how many faces that is. The counts against the file's own (independent), on 1 and 2 ranks (a face
+# between two ranks' cells is not boundary); the solution against the same scene with that part named as
+# Neumann with g = 0 (the same discrete problem); no note where every boundary face is in a part.
+for mesh, path, dirichlet, neumann, left_out in [("square", SQUARE, "3", "2", "4"), ("cube", CUBE, "2", "3,5,6", "4")]:
+    faces, unnamed = file_boundary(path, {int(v) for v in (dirichlet + "," + neumann + ",1").split(",")})
+    base = ["-mesh_file", path, "-bc_dirichlet", dirichlet, "-bc_contact", "1", "-g", "0", "-f", "1 + x", "-u_D", "0", "-psi", "-0.01"]
+    for space in ["p1", "cr"]:
+        _, _, _, named = run(base + ["-space", space, "-bc_neumann", neumann + "," + left_out] + tight)
+        for ranks in [1, 2]:
+            _, out, _, s = run(base + ["-space", space, "-bc_neumann", neumann] + tight, ranks=ranks)
+            what = "%s, part %s left out, %s, %d rank(s)" % (mesh, left_out, space, ranks)
+            c.check(unnamed > 0 and (s["boundary_faces_coarse"], s["unnamed_boundary_faces_coarse"]) == (faces, unnamed),
+                    "%s: %d boundary faces, %d in no part (the file: %d, %d)" % (what, s["boundary_faces_coarse"], s["unnamed_boundary_faces_coarse"], faces, unnamed))
+            note = [line for line in out.splitlines() if line.startswith("note: %d of the %d boundary faces" % (unnamed, faces))]
+            c.check(len(note) == 1 and "kappa du/dn = 0" in note[0], "%s: one note says so: %s" % (what, note))
+            c.check(rel(s["energy"], named["energy"]) < 1e-12 and s["dofs"] == named["dofs"],
+                    "%s: energy %.15g, with the part named Neumann g = 0: %.15g" % (what, s["energy"], named["energy"]))
+        c.check(named["unnamed_boundary_faces_coarse"] == 0 and named["boundary_faces_coarse"] == faces,
+                "%s, every part named, %s: %d of %d boundary faces in no part" % (mesh, space, named["unnamed_boundary_faces_coarse"], named["boundary_faces_coarse"]))
 c.done()

@@ -17,6 +17,7 @@ struct Report {
   std::string scene, element, mesh, loadRule;
   PetscInt    dim = 0, refine = 0, coarseCells = 0, cells = 0, dofs = 0, dirichletDofs = 0, contactDofs = 0, ranks = 1, edgeCut = -1;
   std::vector<PetscInt> cellsPerRank;
+  BoundaryCoverage      boundary; // of the coarse mesh
   SolveResult solve;
   std::string preconditioner;    // of the inactive-set blocks (-vi_pc_type, or as ChoosePreconditioner chose)
   PetscReal   aspect = 0;        // the first mesh's largest cell aspect ratio, where it chose the preconditioner
