@@ -343,6 +343,23 @@ static void DirichletValues(const Space &space, const Problem &problem, const Sy
   }
 }
 
+// Without a Dirichlet part, adding a constant c > 0 keeps u >= psi and changes the energy by -c l(1), where
+// l(1) = int f + int_{Gamma_N} g is the sum of the load vector (the basis functions of both elements sum to
+// 1). A solution exists only where l(1) < 0, i.e. the load pushes u towards the obstacle: with l(1) = 0
+// every u + c solves it too, with l(1) > 0 the energy has no minimum, and the solve would fail with a
+// linear solver's message that names neither. Sums within round-off of 0 count as 0.
+static PetscErrorCode CheckLoadTowardsObstacle(Vec load)
+{
+  PetscScalar total;
+  PetscReal   size;
+  PetscFunctionBeginUser;
+  PetscCall(VecSum(load, &total));
+  PetscCall(VecNorm(load, NORM_1, &size));
+  if (PetscRealPart(total) < -1e-10 * size) PetscFunctionReturn(0);
+  SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)load), "options -f, -g: the scene has no Dirichlet part, so the load must push u towards the obstacle, but its total (int f + int g over Gamma_N) is %.3g (%.3g in absolute value): %s; make the total negative or name a Dirichlet part",
+                        (double)PetscRealPart(total), (double)size, PetscRealPart(total) > 1e-10 * size ? "u + c lowers the energy for every c > 0, so no solution exists" : "u + c solves it for every c > 0, so the solution is not unique");
+}
+
 PetscErrorCode AssembleSystem(const Space &space, const Problem &problem, const AssemblyOptions &opts, System &sys)
 {
   MPI_Comm             comm = PetscObjectComm((PetscObject)space.dm);
@@ -386,6 +403,7 @@ PetscErrorCode AssembleSystem(const Space &space, const Problem &problem, const 
   PetscCall(VecSet(sys.load, 0));
   PetscCall(DMLocalToGlobal(space.dm, loc, ADD_VALUES, sys.load));
   PetscCall(MatAssemblyEnd(sys.A, MAT_FINAL_ASSEMBLY));
+  if (problem.HasContact() && space.numDirichletGlobal == 0) PetscCall(CheckLoadTowardsObstacle(sys.load));
 
   // Dirichlet values: every rank evaluates u_D at its own copies of shared DOFs, so the values agree.
   PetscCall(VecSet(loc, 0));

@@ -161,6 +161,10 @@ with tempfile.TemporaryDirectory() as inputs:
         ("a face in two Neumann parts", ["-mesh_file", overlap, "-bc_neumann", "2,4,5", "-g", "1"], "overlap", True),
         ("same part named twice", ["-bc_neumann", "1,2,4"], "-bc_neumann and -bc_contact", False),
         ("no Dirichlet and no contact part (singular)", ["-bc_dirichlet", "", "-bc_contact", "", "-bc_neumann", "1,2,3,4"], "singular", False),
+        # without a Dirichlet part a solution exists only for a load pushing u towards the obstacle (sum < 0)
+        ("no Dirichlet part, load pushing u away from the obstacle", ["-bc_dirichlet", "", "-bc_neumann", "2,3,4", "-f", "1 + x"], "no solution exists", True),
+        ("no Dirichlet part, load of sum zero", ["-bc_dirichlet", "", "-bc_neumann", "2,3,4"], "not unique", True),
+        ("no Dirichlet part, Neumann flux pushing u away", ["-bc_dirichlet", "", "-bc_neumann", "2,3,4", "-f", "-1", "-g", "y > 0.999 ? 2 : 0"], "no solution exists", True),
         ("obstacle above u_D where Gamma_D meets Gamma_C", ["-bc_dirichlet", "3,4", "-bc_neumann", "2", "-psi", "0.5 - x"], "infeasible", True),
         ("f NaN", ["-f", "sqrt(x - 0.5)"], "option -f:", True),
         ("f infinite", ["-f", "1 / (x - x)"], "option -f:", True),

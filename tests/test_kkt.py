@@ -1,6 +1,7 @@
 """Both elements satisfy the discrete KKT conditions of the Signorini problem to solver tolerance on the
 paper's scene (invariants): u >= psi on Gamma_C, contact pressure >= 0, complementarity, and the equation
-on all DOFs off Gamma_C and Gamma_D; the contact set is a proper, non-empty part of Gamma_C.
+on all DOFs off Gamma_C and Gamma_D; the contact set is a proper, non-empty part of Gamma_C; so too without a
+Dirichlet part, where the load pushes u towards the obstacle.
 The solve ends when these checks pass, not only its residual test: on a kappa jump of 1e6, where the stiff rows
 dominate the residual norm SNESVI tests, the default solver goes on beyond that test until the KKT conditions and
 the stationarity hold to -kkt_tolerance, and its u equals the high-contrast preset's (an independent run of 30
@@ -28,6 +29,21 @@ for n in [16, 64]:
         c.check(s["stationarity"] <= 1e-8, "%s: equation residual off Gamma_C %.2e" % (tag, s["stationarity"]))
         c.check(0 < k["active"] < s["contact_dofs"], "%s: %d of %d contact DOFs active" % (tag, k["active"], s["contact_dofs"]))
         c.check(k["relative"] <= 1e-8, "%s: worst relative KKT residual %.1e" % (tag, k["relative"]))
+
+# Without a Dirichlet part only the contact holds u, and a load pushing it towards the obstacle (a negative
+# total) has one solution: the KKT conditions hold, contact is active somewhere (the pressure balances the
+# load), and 1 and 2 ranks give the same energy. (Other totals are refused: test_bad_input.)
+for space in ["p1", "cr"]:
+    energies = []
+    for ranks in [1, 2]:
+        rc, _, _, s = run(scene("paper-5.1") + ["-space", space, "-box_faces", "32", "-bc_dirichlet", "", "-bc_neumann", "2,3,4",
+                                               "-f", "2*pi*sin(2*pi*x) - 1"], ranks=ranks)
+        k = s["kkt"]
+        tag = "paper-5.1 without Dirichlet part, total load -1, %s %d rank(s)" % (space, ranks)
+        c.check(s["dirichlet_dofs"] == 0 and 0 < k["active"] and k["relative"] <= 1e-8 and s["stationarity"] <= 1e-8,
+                "%s: %d of %d contact DOFs active, worst relative KKT residual %.1e, stationarity %.1e" % (tag, k["active"], s["contact_dofs"], k["relative"], s["stationarity"]))
+        energies.append(s["energy"])
+    c.check(abs(energies[0] - energies[1]) <= 1e-10 * abs(energies[0]), "paper-5.1 without Dirichlet part %s: energy %.12g on 1 rank, %.12g on 2" % (space, energies[0], energies[1]))
 
 WARNING = "signorini: warning: the discrete KKT conditions"
 _, out, _, s = run(scene("paper-5.1") + ["-box_faces", "16"])
