@@ -121,6 +121,23 @@ static PetscErrorCode Run(MPI_Comm comm)
     PetscCall(PetscOptionsHasName(NULL, NULL, name, &given));
     if (given && !adaptive) SIGNORINI_INPUT_ERROR(comm, "option %s: applies to adaptive refinement only; give -adapt_steps K too", name);
   }
+  // So would the options of a convergence study without one, and a study's own files are its table
+  // (-study_output, -summary) and the profiles of its finest levels (-study_profiles), not -output.
+  const bool study = s.study.levels > 0;
+  for (const char *name : {"-study_output", "-study_spaces", "-study_profiles", "-reference_refine", "-reference_space"}) {
+    PetscBool given;
+    PetscCall(PetscOptionsHasName(NULL, NULL, name, &given));
+    if (given && !study) SIGNORINI_INPUT_ERROR(comm, "option %s: applies to a convergence study only; give -study_levels L too", name);
+  }
+  if (study) {
+    PetscBool space, spaces;
+    if (!s.output.file.empty()) SIGNORINI_INPUT_ERROR(comm, "option -output: a convergence study writes the solutions of its finest level with -study_profiles PREFIX (one file per element)");
+    PetscCall(PetscOptionsHasName(NULL, NULL, "-space", &space));
+    PetscCall(PetscOptionsHasName(NULL, NULL, "-study_spaces", &spaces));
+    if (space && spaces && s.study.elements != std::vector<Element>{s.element}) SIGNORINI_INPUT_ERROR(comm, "options -space and -study_spaces: a convergence study solves the elements of -study_spaces; give one of them");
+    if (space) s.study.elements = {s.element};
+    s.study.summary = s.summaryFile;
+  }
   // Nested iteration needs the coarser levels of the refinement; a scene without contact is one linear solve.
   // An adaptive run solves its first mesh so too.
   const bool nestedLevels = s.nested.enabled && s.mesh.refine > 0 && s.nested.levels != 0 && s.study.levels == 0 && !s.problem.contact.empty();

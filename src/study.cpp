@@ -306,7 +306,8 @@ PetscErrorCode ConvergenceStudy::Finish()
   MPI_Comm comm = PetscObjectComm((PetscObject)base_);
   PetscFunctionBeginUser;
   PetscCall(PrintTable(comm, rows_));
-  if (!o_.file.empty()) PetscCall(WriteJSON(comm, o_.file, problem_.scene, o_, N0_ << Finest(), refDofs_, refNestedLevels_, rows_));
+  for (const std::string &file : {o_.file, o_.summary})
+    if (!file.empty()) PetscCall(WriteJSON(comm, file, problem_.scene, o_, N0_ << Finest(), refDofs_, refNestedLevels_, rows_));
   for (MeshSolution &m : solved_) PetscCall(m.Destroy());
   for (DM &dm : levels_) PetscCall(DMDestroy(&dm));
   PetscCall(hierarchy_.Destroy());

@@ -108,6 +108,7 @@ with tempfile.TemporaryDirectory() as inputs:
     with open(truncated, "w") as f:
         f.write(msh[: start + (end - start) // 2])  # cut in the middle of $Elements (and of a line)
     nodir = os.path.join(inputs, "no-such-directory", "out.h5")
+    never = os.path.join(inputs, "never.json")  # -study_output of a run that is no study
     folded, flat, lines, surface, quads, overlap = (os.path.join(inputs, n + ".msh") for n in ("folded", "flat", "lines", "surface", "quads", "overlap"))
     unit_square(folded, center=(1.2, 0.5, 0.0))  # node 5 moved across the right side: cells overlap
     unit_square(flat, center=(1.0, 0.25, 0.0))  # node 5 on the right side: a cell of zero area
@@ -160,6 +161,10 @@ with tempfile.TemporaryDirectory() as inputs:
         ("a face in a Dirichlet and a contact part", ["-mesh_file", overlap, "-bc_dirichlet", "3,5"], "-bc_dirichlet and -bc_contact", True),
         ("a face in two Neumann parts", ["-mesh_file", overlap, "-bc_neumann", "2,4,5", "-g", "1"], "overlap", True),
         ("same part named twice", ["-bc_neumann", "1,2,4"], "-bc_neumann and -bc_contact", False),
+        # an option of another kind of run would be ignored, and a file asked for never written
+        ("study option without a study", ["-reference_refine", "1"], "option -reference_refine: applies to a convergence study only", False),
+        ("study table file without a study", ["-study_output", never], "option -study_output: applies to a convergence study only", False),
+        ("-output in a study", ["-study_levels", "2"], "option -output: a convergence study writes", False),
         ("no Dirichlet and no contact part (singular)", ["-bc_dirichlet", "", "-bc_contact", "", "-bc_neumann", "1,2,3,4"], "singular", False),
         # without a Dirichlet part a solution exists only for a load pushing u towards the obstacle (sum < 0)
         ("no Dirichlet part, load pushing u away from the obstacle", ["-bc_dirichlet", "", "-bc_neumann", "2,3,4", "-f", "1 + x"], "no solution exists", True),
@@ -208,6 +213,7 @@ with tempfile.TemporaryDirectory() as inputs:
     before_refinement = {"missing mesh file", "empty mesh file", "text file as mesh", "truncated mesh file",
                          "unknown boundary label", "expression does not parse", "unknown variable", "zero cell count",
                          "negative refine", "dim 4", "unknown space", "same part named twice",
+                         "study option without a study", "study table file without a study", "-output in a study",
                          "no Dirichlet and no contact part (singular)", "exact gradient with 3 components in 2D",
                          "singular, and a missing mesh file", "bad expression, and a missing mesh file",
                          "quadrilateral cells", "no cells of dimension 2 or 3", "curved surface mesh",
@@ -240,4 +246,5 @@ with tempfile.TemporaryDirectory() as inputs:
                 c.check("DM Object" not in stdout, "%s: stopped before the refinement (no -dm_view output)" % what)
             c.check(summary is None and not left, "%s: no summary, nothing left in the output directory %s" % (what, left))
     c.check(not os.path.exists(os.path.dirname(nodir)), "the missing output directory was not created")
+    c.check(not os.path.exists(never), "the study table of a run without a study was not written")
 c.done()

@@ -8,6 +8,7 @@
 - on the manufactured scene the errors against a fine reference agree with those against the exact solution
   to within the reference's own error (triangle inequality);
 - each level starts from the one before, with the same errors and estimates as levels solved from u_D;
+- -space narrows the study to one element, and -summary holds the study's table;
 - run/study writes the CSV, JSON and PNG files and the rates are in range;
 - without an exact solution or a reference the study measures the error by the estimate alone."""
 import json
@@ -70,6 +71,16 @@ for ref in ["p1", "cr"]:
     s = study(lin + ["-reference_space", ref])
     worst = max(max(r["error_reference"]["l2"], r["error_reference"]["h1_semi"]) for r in s["rows"])
     c.check(worst < 1e-11, "linear u against its own refinement (%s reference): largest error %.2e" % (ref, worst))
+
+# -space narrows a study to that element (without it, -study_spaces' p1,cr), and -summary, every run's summary
+# file, holds the study's table as -study_output does: the same rows, here those of CR alone.
+with tempfile.TemporaryDirectory() as tmp:
+    table, summary = os.path.join(tmp, "table.json"), os.path.join(tmp, "summary.json")
+    run(lin + ["-space", "cr", "-study_output", table, "-summary", summary])
+    with open(table) as f, open(summary) as g:
+        a, b = json.load(f), json.load(g)
+c.check([r["element"] for r in a["rows"]] == ["cr", "cr"] and a == b,
+        "study -space cr: rows of %s; -summary holds the table of -study_output: %s" % ([r["element"] for r in a["rows"]], a == b))
 
 # Manufactured scene: | ||u_H - u_ref|| - ||u_H - u|| | <= ||u_ref - u||.
 levels, extra = 3, 2

@@ -23,7 +23,8 @@ struct StudyOptions {
   PetscInt             referenceRefine = 0; // refinements of the finest study level for the reference (0: none)
   Element              referenceElement = Element::P1;
   std::vector<Element> elements = {Element::P1, Element::CR};
-  std::string          file;     // JSON output
+  std::string          file;     // JSON output (-study_output)
+  std::string          summary;  // the same JSON again (-summary: every run's summary file, here the study's)
   std::string          profiles; // prefix of the finest level's solution (HDF5) and contact profile (CSV)
   NestedOptions        nested; // enabled: each level from the one before, the reference by nested iteration (-nested 0: from u_D)
 };
