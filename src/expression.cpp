@@ -261,6 +261,7 @@ PetscErrorCode Expression::Create(MPI_Comm comm, const std::string &option, cons
     e.parser_->SetExpr(text);
     int           n = 0;
     const double *v = e.parser_->Eval(n); // muparser parses lazily: evaluate once so syntax errors surface here
+    e.usesCellSet_ = e.parser_->GetUsedVar().count("cell_set") > 0;
     if (n != components) message = Format("option %s: '%s' has %d component(s), expected %d", option.c_str(), text.c_str(), n, components);
     else if (at == At::Point && e.parser_->GetUsedVar().count("cell_set"))
       message = Format("option %s: cell_set is not defined here (%s is a value at boundary points, which may touch cells of several sets; cell_set is defined in -kappa, -f, -g, -exact_u and -exact_grad)", option.c_str(), option.c_str());

@@ -67,6 +67,27 @@ std::string MissingPartMessage(const char *option, PetscInt value)
   return Format("option %s: boundary part %d does not exist on the mesh (no face carries that \"Face Sets\" value)", option, (int)value);
 }
 
+// Collective: the centroid x of mesh point `point` (-1: none on this rank) of the lowest rank that has one
+// (x untouched where no rank has one), for a message that names one place.
+static PetscErrorCode PointOfLowestRank(DM dm, PetscInt point, PetscReal x[3])
+{
+  MPI_Comm    comm = PetscObjectComm((PetscObject)dm);
+  PetscMPIInt rank, from;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  from = point >= 0 ? rank : PETSC_MPI_INT_MAX;
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &from, 1, MPI_INT, MPI_MIN, comm));
+  if (from == PETSC_MPI_INT_MAX) PetscFunctionReturn(0);
+  if (rank == from) PetscCall(DMPlexComputeCellGeometryFVM(dm, point, NULL, x, NULL));
+  PetscCallMPI(MPI_Bcast(x, 3, MPIU_REAL, from, comm));
+  PetscFunctionReturn(0);
+}
+
+static std::string PointText(PetscInt dim, const PetscReal x[3])
+{
+  return dim == 2 ? Format("%g, %g", (double)x[0], (double)x[1]) : Format("%g, %g, %g", (double)x[0], (double)x[1], (double)x[2]);
+}
+
 // The faces of the domain's boundary in no named part, where kappa du/dn = 0 holds (the natural
 // condition): right where it is meant (a symmetry plane), a silent wrong answer where a part was forgotten
 // or mistyped, so the run says so. A face with one cell on this rank lies on the domain's boundary unless
@@ -78,9 +99,7 @@ static PetscErrorCode CountUnnamedBoundary(DM dm, const std::vector<char> &named
   PetscInt           pStart, pEnd, fStart, fEnd, nroots, nleaves;
   const PetscInt    *leaves, *degree = nullptr;
   const PetscSFNode *remotes;
-  PetscMPIInt        rank;
   PetscFunctionBeginUser;
-  PetscCallMPI(MPI_Comm_rank(comm, &rank));
   PetscCall(DMPlexGetChart(dm, &pStart, &pEnd));
   PetscCall(DMPlexGetHeightStratum(dm, 1, &fStart, &fEnd));
   PetscCall(DMGetPointSF(dm, &sf));
@@ -105,13 +124,41 @@ static PetscErrorCode CountUnnamedBoundary(DM dm, const std::vector<char> &named
   }
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, counts, 2, MPIU_INT, MPI_SUM, comm));
   b.faces = counts[0], b.unnamed = counts[1];
-  // An example location, from the lowest rank that has one.
-  PetscMPIInt from = first >= 0 ? rank : PETSC_MPI_INT_MAX;
-  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &from, 1, MPI_INT, MPI_MIN, comm));
-  if (from == PETSC_MPI_INT_MAX) PetscFunctionReturn(0);
-  if (rank == from) PetscCall(DMPlexComputeCellGeometryFVM(dm, first, NULL, b.example, NULL));
-  PetscCallMPI(MPI_Bcast(b.example, 3, MPIU_REAL, from, comm));
+  PetscCall(PointOfLowestRank(dm, first, b.example));
   PetscFunctionReturn(0);
+}
+
+// An expression of cell_set reads -1 in a cell of no "Cell Sets" value, and on a mesh without the label
+// (a built-in box, a Gmsh file without physical surfaces or volumes) in every cell: kappa "cell_set == 1 ?
+// 1 : 100" was 100 everywhere there, without a word. Refused where a cell of the coarse mesh has no value
+// (refinement hands every cell's value to its children).
+static PetscErrorCode CheckCellSets(DM dm, PetscInt dim, const Problem &p)
+{
+  MPI_Comm comm = PetscObjectComm((PetscObject)dm);
+  DMLabel  cellSets;
+  PetscInt cStart, cEnd;
+  PetscFunctionBeginUser;
+  const Expression *uses = nullptr;
+  for (const Expression *e : {p.kappa.get(), p.f.get(), p.g.get(), p.exact.get(), p.exactGrad.get()})
+    if (e && e->UsesCellSet() && !uses) uses = e;
+  if (!uses) PetscFunctionReturn(0);
+  PetscCall(DMGetLabel(dm, "Cell Sets", &cellSets));
+  PetscCall(DMPlexGetHeightStratum(dm, 0, &cStart, &cEnd));
+  PetscInt counts[2] = {cEnd - cStart, 0}, first = -1; // cells, those without a value
+  for (PetscInt c = cStart; c < cEnd; ++c) {
+    PetscInt value = -1;
+    if (cellSets) PetscCall(DMLabelGetValue(cellSets, c, &value));
+    if (value != -1) continue;
+    if (first < 0) first = c;
+    ++counts[1];
+  }
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, counts, 2, MPIU_INT, MPI_SUM, comm));
+  if (counts[1] == 0) PetscFunctionReturn(0);
+  if (counts[1] == counts[0])
+    SIGNORINI_INPUT_ERROR(comm, "option %s: '%s' uses cell_set, but no cell of the mesh is in a \"Cell Sets\" (a built-in box, or a Gmsh file without physical %s): cell_set would read -1 everywhere", uses->Option().c_str(), uses->Text().c_str(), dim == 2 ? "surfaces" : "volumes");
+  PetscReal x[3] = {0, 0, 0};
+  PetscCall(PointOfLowestRank(dm, first, x));
+  SIGNORINI_INPUT_ERROR(comm, "option %s: '%s' uses cell_set, but %d of the %d cells of the coarse mesh %s in no \"Cell Sets\" (one near (%s)): cell_set would read -1 there", uses->Option().c_str(), uses->Text().c_str(), (int)counts[1], (int)counts[0], counts[1] == 1 ? "is" : "are", PointText(dim, x).c_str());
 }
 
 PetscErrorCode ProblemCheckMesh(DM dm, Problem &p)
@@ -135,11 +182,12 @@ PetscErrorCode ProblemCheckMesh(DM dm, Problem &p)
       PetscCallMPI(MPI_Allreduce(&local, &global, 1, MPIU_INT, MPI_SUM, comm));
       if (global == 0) SIGNORINI_INPUT_ERROR(comm, "%s", MissingPartMessage(part.first, value).c_str());
     }
+  PetscCall(CheckCellSets(dm, dim, p));
   PetscCall(CountUnnamedBoundary(dm, named, p.coverage));
   const BoundaryCoverage &b = p.coverage;
   if (b.unnamed > 0)
     PetscCall(PetscPrintf(comm, "note: %d of the %d boundary faces of the coarse mesh %s in no part of -bc_dirichlet, -bc_neumann, -bc_contact (one near (%s)): kappa du/dn = 0 there\n", (int)b.unnamed, (int)b.faces, b.unnamed == 1 ? "is" : "are",
-                          (dim == 2 ? Format("%g, %g", (double)b.example[0], (double)b.example[1]) : Format("%g, %g, %g", (double)b.example[0], (double)b.example[1], (double)b.example[2])).c_str()));
+                          PointText(dim, b.example).c_str()));
   PetscFunctionReturn(0);
 }
 

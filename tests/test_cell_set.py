@@ -6,7 +6,7 @@ faces. So in -f (cell integrals), -g (the one cell of a Neumann face) and -exact
 integrals), an expression of cell_set must give what the same function written in x gives: the same energy
 to 1e-12 in an independent run. Before, cell_set was -1 outside -kappa, and -f "cell_set==1?1:0" gave u = 0.
 -u_D and -psi are values at boundary points, which may touch cells of both sets: cell_set there is an input
-error. An expression of any length is read whole: "0+0+...+1" (> 4096 characters) gives what "1" gives."""
+error, and so is cell_set where a cell has no "Cell Sets" value (it would read -1). An expression of any length is read whole: "0+0+...+1" (> 4096 characters) gives what "1" gives."""
 import os
 import tempfile
 
@@ -52,6 +52,31 @@ for option in ["-psi", "-u_D"]:
     c.check(rc == 1 and len(lines) == 1 and lines[0].startswith("signorini: error: option %s: cell_set is not defined here" % option),
             "%s cell_set: one error line (exit %d): %s" % (option, rc, lines))
     c.check(not left, "%s cell_set: nothing written" % option)
+
+# Where a cell has no "Cell Sets" value, cell_set would read -1 there: refused in one line, on 1 and 2 ranks,
+# naming the option, for a mesh without the label (the built-in box: kappa "cell_set == 1 ? 1 : 100" was 100
+# everywhere) and for a Gmsh file with one triangle left out of the physical surfaces.
+with tempfile.TemporaryDirectory() as tmp:
+    partial = os.path.join(tmp, "partial.msh")
+    lines = open(os.path.join(ROOT, "tests", "data", "square.msh")).read().split("\n")
+    start = lines.index("$Elements")
+    for i in range(start + 2, start + 2 + int(lines[start + 1])):
+        p = lines[i].split()
+        if p[1] == "2":  # the first triangle, now without tags (in no physical surface)
+            lines[i] = " ".join(p[:2] + ["0"] + p[3 + int(p[2]):])
+            break
+    open(partial, "w").write("\n".join(lines))
+    box = ["-dim", "2", "-box_faces", "4", "-bc_dirichlet", "3", "-bc_contact", "1", "-bc_neumann", "2,4"]
+    for what, args, says in [("box, -kappa", box + ["-kappa", "cell_set == 1 ? 1 : 100"], "option -kappa: 'cell_set == 1 ? 1 : 100' uses cell_set, but no cell of the mesh is in a \"Cell Sets\""),
+                             ("box, -exact_grad", box + ["-exact_u", "x", "-exact_grad", "cell_set, 0"], "option -exact_grad: 'cell_set, 0' uses cell_set, but no cell"),
+                             ("one triangle in no set, -f", square[:2] + ["-mesh_file", partial] + square[2:] + ["-f", "cell_set == 1 ? 1 : 0"],
+                              "option -f: 'cell_set == 1 ? 1 : 0' uses cell_set, but 1 of the ")]:
+        for ranks in [1, 2]:
+            rc, _, err, summary = run(args, ranks=ranks, check=False)
+            ours = [l for l in err.splitlines() if l.startswith("signorini: error:")]
+            c.check(rc == 1 and len(ours) == 1 and says in ours[0] and summary is None, "%s with cell_set, %d rank(s): exit %d, %s" % (what, ranks, rc, ours))
+    rc, _, _, _ = run(square[:2] + ["-mesh_file", partial] + square[2:] + ["-f", "x"], check=False)
+    c.check(rc == 0, "the same file without cell_set in any expression: runs (exit %d)" % rc)
 
 # No length limit cuts an expression: 3000 terms (6001 characters), on the command line and in an options file.
 long_f = "0+" * 3000 + "1"

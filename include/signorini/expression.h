@@ -46,6 +46,8 @@ public:
   bool IsZero() const { return constant_ && components_ == 1 && value_[0] == 0; }
   // True when the expression uses no variable (x, y, z or cell_set): one value everywhere.
   bool IsConstant() const { return constant_; }
+  // True when it reads cell_set (then every cell it is evaluated in needs a "Cell Sets" value).
+  bool UsesCellSet() const { return usesCellSet_; }
 
 private:
   Expression() = default;
@@ -60,6 +62,7 @@ private:
   // An expression that uses no variable (kappa = 1, psi = 0) is evaluated once: set-up evaluates kappa
   // in every cell of every level, and the parser costs about as much as the rest of the cell's work.
   bool                          constant_   = false;
+  bool                          usesCellSet_ = false;
   std::array<double, 3>         value_{};
   std::unique_ptr<Program>      program_; // null where the byte code has an operation the block evaluation lacks
 };
