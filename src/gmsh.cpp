@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <unistd.h>
 #include <unordered_map>
 
 namespace signorini {
@@ -243,7 +244,14 @@ std::string GmshCheckFile(const std::string &file, const std::string &name, Gmsh
 {
   nodes = GmshNodes();
   FILE *fp = std::fopen(file.c_str(), "r");
-  if (!fp) return Format("%s: cannot open it for reading (%s)", name.c_str(), std::strerror(errno));
+  if (!fp) {
+    const int error = errno;
+    // A relative path is taken from the working directory, not from the options file that named it (the
+    // scenes of petsc-options/ name their meshes from the repository's root): say which directory that was.
+    char        cwd[4096];
+    std::string from = !file.empty() && file[0] != '/' && getcwd(cwd, sizeof(cwd)) ? Format(" (a relative path, taken from the working directory %s)", cwd) : "";
+    return Format("%s: cannot open it for reading (%s)%s", name.c_str(), std::strerror(error), from.c_str());
+  }
   Reader r(fp);
   std::string problem;
   if (!r.Next()) problem = name + (std::ferror(fp) ? ": cannot be read (is it a directory?)" : ": the file is empty");
