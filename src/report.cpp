@@ -91,7 +91,8 @@ PetscErrorCode ReportPrint(MPI_Comm comm, const Report &r)
       const SolveResult::Level &v = r.solve.levels[l];
       o << Format("  nested level %d: %d DOFs, %d Newton / %d KSP iterations, set-up %.3f s, solve %.3f s, stopped by %s\n", (int)l, (int)v.dofs, (int)v.newtonIts, (int)v.kspIts, v.setupSeconds, v.solveSeconds, v.stoppedBy.c_str());
     }
-    o << Format("  KKT on Gamma_C: min(u-psi) %.3e, min pressure %.3e, max |(u-psi) pressure| %.3e (worst relative %.1e), active %d of %d\n", (double)r.solve.primal, (double)r.solve.dual, (double)r.solve.complementarity, (double)r.solve.kktRelative, (int)r.solve.active, (int)r.contactDofs);
+    if (r.contactDofs == 0) o << "  KKT on Gamma_C: nothing to check (no contact DOFs: those of Gamma_C all lie on Gamma_D)\n";
+    else o << Format("  KKT on Gamma_C: min(u-psi) %.3e, min pressure %.3e, max |(u-psi) pressure| %.3e (worst relative %.1e), active %d of %d\n", (double)r.solve.primal, (double)r.solve.dual, (double)r.solve.complementarity, (double)r.solve.kktRelative, (int)r.solve.active, (int)r.contactDofs);
   } else {
     o << Format("  solve: KSP %s, %d iterations (no contact part: linear solve", r.solve.reason.c_str(), (int)r.solve.kspIts);
     if (r.solve.kktSteps > 0) o << Format("; %d more solve%s from where it stopped, for the stationarity check", (int)r.solve.kktSteps, r.solve.kktSteps > 1 ? "s" : "");
@@ -187,8 +188,10 @@ PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string
   }
   if (r.solve.linearSeconds >= 0) o << ", \"linear_solve_seconds\": " << Num(r.solve.linearSeconds) << ", \"linear_ksp_iterations\": " << r.solve.linearKspIts << ", \"solve_linear_ratio\": " << Num(r.solve.solveSeconds / r.solve.linearSeconds);
   o << "},\n";
-  if (r.solve.vi)
-    o << "  \"kkt\": {\"min_gap\": " << Num(r.solve.primal) << ", \"min_pressure\": " << Num(r.solve.dual) << ", \"max_complementarity\": " << Num(r.solve.complementarity) << ", \"max_pressure\": " << Num(r.solve.pressureMax) << ", \"max_gap\": " << Num(r.solve.gapMax) << ", \"relative\": " << Num(r.solve.kktRelative) << ", \"active\": " << r.solve.active << "},\n";
+  if (r.solve.vi) { // without contact DOFs (Gamma_C all on Gamma_D) the minima and maxima are of nothing: null
+    const auto kkt = [&](double v) { return r.contactDofs > 0 ? Num(v) : std::string("null"); };
+    o << "  \"kkt\": {\"min_gap\": " << kkt(r.solve.primal) << ", \"min_pressure\": " << kkt(r.solve.dual) << ", \"max_complementarity\": " << kkt(r.solve.complementarity) << ", \"max_pressure\": " << kkt(r.solve.pressureMax) << ", \"max_gap\": " << kkt(r.solve.gapMax) << ", \"relative\": " << kkt(r.solve.kktRelative) << ", \"active\": " << r.solve.active << "},\n";
+  }
   o << "  \"stationarity\": " << Num(r.solve.stationarity) << ",\n  \"energy\": " << Num(r.solve.energy) << ",\n";
   if (!r.adapt.empty()) {
     o << "  \"adapt\": [";
