@@ -90,6 +90,32 @@ static PetscErrorCode InitializePackages()
   PetscFunctionReturn(0);
 }
 
+// Options of this program that the run had no use for, each with the reason. PETSc lists its own unused
+// options (WarnUnusedOptions), but every component reads ours up front, so a tuning option that cannot
+// apply to this scene or mesh would otherwise pass unseen, like a mistyped one.
+static PetscErrorCode WarnNotApplied(MPI_Comm comm, std::initializer_list<const char *> names, const char *why)
+{
+  PetscFunctionBeginUser;
+  for (const char *name : names) {
+    char      value[256] = "";
+    PetscBool set;
+    PetscCall(PetscOptionsGetString(NULL, NULL, name, value, sizeof(value), &set));
+    if (set) PetscCall(PetscPrintf(comm, "signorini: warning: option %s%s%s was not used (%s)\n", name, value[0] ? " " : "", value, why));
+  }
+  PetscFunctionReturn(0);
+}
+
+static PetscErrorCode WarnNotAppliedOptions(MPI_Comm comm, const Settings &s, bool nestedLevels)
+{
+  PetscFunctionBeginUser;
+  if (!s.problem.HasContact())
+    PetscCall(WarnNotApplied(comm, {"-amg_reuse", "-amg_reuse_max_changed", "-vi_inexact_rtol", "-vi_pc_type", "-vi_release_theta", "-nested", "-nested_levels", "-solve_to", "-solve_to_rtol", "-solve_to_fraction"}, "the scene has no contact part: it is one linear solve"));
+  else if (!nestedLevels && s.adapt.steps == 0 && s.study.levels == 0)
+    PetscCall(WarnNotApplied(comm, {"-nested_levels", "-solve_to", "-solve_to_rtol", "-solve_to_fraction"}, s.nested.enabled ? "no nested iteration: the mesh has no coarser refinement levels" : "no nested iteration: -nested 0"));
+  if (s.assembly.centroid) PetscCall(WarnNotApplied(comm, {"-load_quadrature_degree"}, "-load_quadrature centroid is the one-point rule"));
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode Run(MPI_Comm comm)
 {
   Settings       s;
@@ -171,6 +197,7 @@ static PetscErrorCode Run(MPI_Comm comm)
     PetscCall(SolveMeshes(s.problem, study));
     PetscCall(study.Finish());
     PetscCall(DMDestroy(&mesh));
+    PetscCall(WarnNotAppliedOptions(comm, s, nestedLevels));
     PetscFunctionReturn(0);
   }
   PipelineOptions po;
@@ -247,6 +274,7 @@ static PetscErrorCode Run(MPI_Comm comm)
 
   PetscCall(fine.Destroy());
   PetscCall(DMDestroy(&mesh));
+  PetscCall(WarnNotAppliedOptions(comm, s, nestedLevels));
   PetscFunctionReturn(0);
 }
 

@@ -1,7 +1,8 @@
 """A mistyped option never passes unseen. An unknown application option is an error before the run (see
 test_input_numbers); an option of a PETSc family that nothing read (-snes_monitr, or -snes_rtol in a scene
-without contact, where no SNES is created) is listed at the end of the run; a run with only valid options
-lists none."""
+without contact, where no SNES is created) is listed at the end of the run, and so is an option of this
+program that the run has no use for (solver options without a contact part, nested-iteration options
+without levels, the degree of the centroid rule); a run with only valid options lists none."""
 from harness import Checker, run, scene
 
 c = Checker()
@@ -15,4 +16,26 @@ _, out, _, _ = run(base + ["-snes_monitor", "-ksp_converged_reason"])
 c.check("warning" not in out, "valid options: no warning")
 _, out, _, _ = run(base + ["-bc_contact", "", "-snes_rtol", "1e-9"])
 c.check("option -snes_rtol 1e-9 was not used" in out, "no contact part: the SNES option is reported unused")
+
+# So are this program's own options where the run has no use for them (read up front, PETSc cannot tell),
+# each once with the reason; where they apply, nothing is said.
+def warnings(args, ranks=1):
+    out = run(base + args, ranks=ranks)[1]
+    return [l for l in out.splitlines() if l.startswith("signorini: warning: option")]
+
+
+for ranks in [1, 2]:
+    w = warnings(["-bc_contact", "", "-bc_neumann", "1,2,4", "-vi_pc_type", "hypre", "-amg_reuse", "0", "-solve_to", "full"], ranks)
+    c.check(len(w) == 3 and all("no contact part" in l for l in w) and "-vi_pc_type hypre" in w[0] + w[1] + w[2],
+            "%d rank(s): contact solver options without a contact part, reported: %s" % (ranks, w))
+w = warnings(["-box_coarsen", "0", "-solve_to", "discretization", "-nested_levels", "2"])
+c.check(len(w) == 2 and all("no coarser refinement levels" in l for l in w), "no refinement levels: the nested options reported: %s" % w)
+w = warnings(["-nested", "0", "-solve_to_rtol", "0.5"])
+c.check(len(w) == 1 and "-nested 0" in w[0], "-nested 0: -solve_to_rtol reported: %s" % w)
+w = warnings(["-load_quadrature", "centroid", "-load_quadrature_degree", "6"])
+c.check(len(w) == 1 and "one-point rule" in w[0], "centroid rule: -load_quadrature_degree reported: %s" % w)
+for args in [["-box_faces", "16", "-solve_to", "full", "-nested_levels", "2", "-vi_pc_type", "hypre"], ["-adapt_steps", "1", "-solve_to", "discretization"],
+             ["-box_coarsen", "0", "-study_levels", "2", "-solve_to", "full"], ["-load_quadrature_degree", "6"]]:
+    w = warnings(args)
+    c.check(not w, "%s: applied, nothing reported: %s" % (" ".join(args), w))
 c.done()
