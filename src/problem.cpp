@@ -112,7 +112,7 @@ static PetscErrorCode CountUnnamedBoundary(DM dm, const std::vector<char> &named
     for (PetscInt q = pStart; q < pEnd; ++q)
       if (degree[q - pStart] > 0) shared[q - pStart] = 1;
   }
-  PetscInt  counts[2] = {0, 0}, first = -1; // boundary faces, unnamed ones; the first unnamed face
+  PetscInt counts[2] = {0, 0}, first = -1; // boundary faces, unnamed ones; the first unnamed face
   for (PetscInt f = fStart; f < fEnd; ++f) {
     PetscInt nsupp;
     PetscCall(DMPlexGetSupportSize(dm, f, &nsupp));
