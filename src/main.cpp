@@ -270,6 +270,16 @@ static PetscErrorCode Run(MPI_Comm comm)
   PetscCall(ReportGatherTimes(comm, start, report));
   PetscCall(ReportGatherMemory(comm, fine.sys.A, report));
   PetscCall(ReportPrint(comm, report));
+  if (report.hasExact && report.estimate.computed && s.nested.solveTo != NestedOptions::Discretization) {
+    // the smallest index of the run: the final mesh, or any adaptive step with its error
+    PetscReal   eta = report.estimate.eta, error = report.error.energy;
+    std::string where;
+    for (size_t k = 0; k < report.adapt.size(); ++k) {
+      const AdaptRow &a = report.adapt[k];
+      if (a.error > 0 && a.eta / a.error < eta / error) eta = a.eta, error = a.error, where = Format(" at adaptive step %d", (int)k);
+    }
+    PetscCall(WarnBoundBelowError(comm, eta, error, where));
+  }
   if (!s.summaryFile.empty()) PetscCall(ReportWriteJSON(comm, report, s.summaryFile));
 
   PetscCall(fine.Destroy());

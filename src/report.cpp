@@ -75,6 +75,14 @@ static std::string Bytes(double b)
   return b >= 1e9 ? Format("%.2f GB", b / 1e9) : Format("%.1f MB", b / 1e6);
 }
 
+PetscErrorCode WarnBoundBelowError(MPI_Comm comm, PetscReal eta, PetscReal error, const std::string &where)
+{
+  PetscFunctionBeginUser;
+  if (!(eta < error)) PetscFunctionReturn(0);
+  PetscCall(PetscPrintf(comm, "signorini: warning: the estimate eta %.6e is below the energy error %.6e against -exact_u%s (index %.3f), although it bounds that error where -exact_u and -exact_grad solve this scene, u_D and psi are affine on each boundary face, the load rule is exact and the solve converged: check -exact_u and -exact_grad against the data\n", (double)eta, (double)error, where.c_str(), (double)(eta / error)));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode ReportPrint(MPI_Comm comm, const Report &r)
 {
   std::ostringstream o;

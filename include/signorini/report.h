@@ -49,6 +49,10 @@ PetscErrorCode PeakRSS(MPI_Comm comm, double *sum, double *max);
 // Collective: fills the memory figures; A is the stiffness matrix.
 PetscErrorCode ReportGatherMemory(MPI_Comm comm, Mat A, Report &r);
 PetscErrorCode ReportPrint(MPI_Comm comm, const Report &r);
+// eta bounds the error with constant 1 (README, under its assumptions), so an energy error against the
+// exact solution above it (index < 1) means that -exact_u/-exact_grad do not solve the scene, or that an
+// assumption fails: one warning line, for the smallest index of the run's meshes (`where` names it).
+PetscErrorCode WarnBoundBelowError(MPI_Comm comm, PetscReal eta, PetscReal error, const std::string &where);
 PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string &file);
 // The estimate as a JSON object: eta, its parts, its seconds and, with the error known (error not null),
 // the efficiency index eta / energy error.
