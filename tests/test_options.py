@@ -2,7 +2,8 @@
 test_input_numbers); an option of a PETSc family that nothing read (-snes_monitr, or -snes_rtol in a scene
 without contact, where no SNES is created) is listed at the end of the run, and so is an option of this
 program that the run has no use for (solver options without a contact part, nested-iteration options
-without levels, the degree of the centroid rule); a run with only valid options lists none."""
+without levels, the degree of the centroid rule, non-zero data of a boundary part the scene does not have);
+a run with only valid options lists none."""
 from harness import Checker, run, scene
 
 c = Checker()
@@ -34,6 +35,14 @@ w = warnings(["-nested", "0", "-solve_to_rtol", "0.5"])
 c.check(len(w) == 1 and "-nested 0" in w[0], "-nested 0: -solve_to_rtol reported: %s" % w)
 w = warnings(["-load_quadrature", "centroid", "-load_quadrature_degree", "6"])
 c.check(len(w) == 1 and "one-point rule" in w[0], "centroid rule: -load_quadrature_degree reported: %s" % w)
+# Data of a boundary part the scene does not have (the scene files' 0 for every part is no data).
+for args, option in [(["-bc_neumann", "", "-bc_dirichlet", "2,3,4", "-g", "1"], "-g 1"), (["-bc_contact", "", "-bc_neumann", "1,2,4", "-psi", "0.1*x"], "-psi 0.1*x"),
+                     (["-bc_dirichlet", "", "-bc_neumann", "2,3,4", "-f", "-1", "-u_D", "1"], "-u_D 1")]:
+    w = warnings(args)
+    c.check(len(w) == 1 and ("option %s was not used" % option) in w[0] and "the scene has no" in w[0], "%s without its part: reported: %s" % (option, w))
+for args in [["-bc_contact", "", "-bc_neumann", "1,2,4"], ["-bc_neumann", "", "-bc_dirichlet", "2,3,4"]]:
+    w = warnings(args)
+    c.check(not w, "%s: the scene file's zero data, nothing reported: %s" % (" ".join(args), w))
 for args in [["-box_faces", "16", "-solve_to", "full", "-nested_levels", "2", "-vi_pc_type", "hypre"], ["-adapt_steps", "1", "-solve_to", "discretization"],
              ["-box_coarsen", "0", "-study_levels", "2", "-solve_to", "full"], ["-load_quadrature_degree", "6"]]:
     w = warnings(args)
