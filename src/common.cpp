@@ -44,6 +44,11 @@ std::string Format(const char *fmt, ...)
   return text;
 }
 
+std::string CoordinatesText(PetscInt dim, const PetscReal x[])
+{
+  return dim == 2 ? Format("%g, %g", (double)x[0], (double)x[1]) : Format("%g, %g, %g", (double)x[0], (double)x[1], (double)x[2]);
+}
+
 PetscErrorCode SecondsSince(MPI_Comm comm, PetscLogDouble t0, double *seconds)
 {
   PetscLogDouble t1;

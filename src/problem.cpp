@@ -83,11 +83,6 @@ static PetscErrorCode PointOfLowestRank(DM dm, PetscInt point, PetscReal x[3])
   PetscFunctionReturn(0);
 }
 
-static std::string PointText(PetscInt dim, const PetscReal x[3])
-{
-  return dim == 2 ? Format("%g, %g", (double)x[0], (double)x[1]) : Format("%g, %g, %g", (double)x[0], (double)x[1], (double)x[2]);
-}
-
 // The faces of the domain's boundary in no named part, where kappa du/dn = 0 holds (the natural
 // condition): right where it is meant (a symmetry plane), a silent wrong answer where a part was forgotten
 // or mistyped, so the run says so. A face with one cell on this rank lies on the domain's boundary unless
@@ -158,7 +153,7 @@ static PetscErrorCode CheckCellSets(DM dm, PetscInt dim, const Problem &p)
     SIGNORINI_INPUT_ERROR(comm, "option %s: '%s' uses cell_set, but no cell of the mesh is in a \"Cell Sets\" (a built-in box, or a Gmsh file without physical %s): cell_set would read -1 everywhere", uses->Option().c_str(), uses->Text().c_str(), dim == 2 ? "surfaces" : "volumes");
   PetscReal x[3] = {0, 0, 0};
   PetscCall(PointOfLowestRank(dm, first, x));
-  SIGNORINI_INPUT_ERROR(comm, "option %s: '%s' uses cell_set, but %d of the %d cells of the coarse mesh %s in no \"Cell Sets\" (one near (%s)): cell_set would read -1 there", uses->Option().c_str(), uses->Text().c_str(), (int)counts[1], (int)counts[0], counts[1] == 1 ? "is" : "are", PointText(dim, x).c_str());
+  SIGNORINI_INPUT_ERROR(comm, "option %s: '%s' uses cell_set, but %d of the %d cells of the coarse mesh %s in no \"Cell Sets\" (one near (%s)): cell_set would read -1 there", uses->Option().c_str(), uses->Text().c_str(), (int)counts[1], (int)counts[0], counts[1] == 1 ? "is" : "are", CoordinatesText(dim, x).c_str());
 }
 
 PetscErrorCode ProblemCheckMesh(DM dm, Problem &p)
@@ -187,7 +182,7 @@ PetscErrorCode ProblemCheckMesh(DM dm, Problem &p)
   const BoundaryCoverage &b = p.coverage;
   if (b.unnamed > 0)
     PetscCall(PetscPrintf(comm, "note: %d of the %d boundary faces of the coarse mesh %s in no part of -bc_dirichlet, -bc_neumann, -bc_contact (one near (%s)): kappa du/dn = 0 there\n", (int)b.unnamed, (int)b.faces, b.unnamed == 1 ? "is" : "are",
-                          PointText(dim, b.example).c_str()));
+                          CoordinatesText(dim, b.example).c_str()));
   PetscFunctionReturn(0);
 }
 

@@ -204,7 +204,7 @@ static std::string PointText(const Space &s, PetscInt p)
 {
   PetscReal measure, x[3] = {0, 0, 0}, n[3];
   if (DMPlexComputeCellGeometryFVM(s.mesh, p, &measure, x, n)) return "?";
-  return s.dim == 2 ? Format("%g, %g", (double)x[0], (double)x[1]) : Format("%g, %g, %g", (double)x[0], (double)x[1], (double)x[2]);
+  return CoordinatesText(s.dim, x);
 }
 
 // Collects the faces of every named part, checking that each part exists and lies on the boundary.

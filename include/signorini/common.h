@@ -70,6 +70,8 @@ void ReleaseFreedMemory();
 
 // printf-style formatting into a std::string.
 std::string Format(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+// "x, y" or "x, y, z" (dim coordinates of x), for messages that name a place.
+std::string CoordinatesText(PetscInt dim, const PetscReal x[]);
 
 } // namespace signorini
 
