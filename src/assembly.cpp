@@ -1,4 +1,5 @@
 #include "signorini/assembly.h"
+#include "signorini/components.h"
 #include "signorini/options.h"
 #include "signorini/pattern.h"
 #include "signorini/stages.h"
@@ -347,17 +348,65 @@ static void DirichletValues(const Space &space, const Problem &problem, const Sy
 // l(1) = int f + int_{Gamma_N} g is the sum of the load vector (the basis functions of both elements sum to
 // 1). A solution exists only where l(1) < 0, i.e. the load pushes u towards the obstacle: with l(1) = 0
 // every u + c solves it too, with l(1) > 0 the energy has no minimum, and the solve would fail with a
-// linear solver's message that names neither. Sums within round-off of 0 count as 0.
-static PetscErrorCode CheckLoadTowardsObstacle(Vec load)
+// linear solver's message that names neither. Sums within round-off of 0 count as 0. The same holds for
+// each piece of a domain in several pieces that has contact but no Dirichlet face (BoundaryCoverage),
+// with the sum over that piece's DOFs: the pieces of the space (DOFs joined through cells) are found only
+// then, as the whole domain is one piece otherwise.
+static PetscErrorCode CheckLoadTowardsObstacle(const Space &space, const Problem &problem, Vec load)
 {
-  PetscScalar total;
-  PetscReal   size;
+  MPI_Comm              comm = PetscObjectComm((PetscObject)load);
+  std::vector<PetscInt> piece(space.numLocal, 0);
+  PetscInt              count = 1;
+  const PetscScalar    *l;
   PetscFunctionBeginUser;
-  PetscCall(VecSum(load, &total));
-  PetscCall(VecNorm(load, NORM_1, &size));
-  if (PetscRealPart(total) < -1e-10 * size) PetscFunctionReturn(0);
-  SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)load), "options -f, -g: the scene has no Dirichlet part, so the load must push u towards the obstacle, but its total (int f + int g over Gamma_N) is %.3g (%.3g in absolute value): %s; make the total negative or name a Dirichlet part",
-                        (double)PetscRealPart(total), (double)size, PetscRealPart(total) > 1e-10 * size ? "u + c lowers the energy for every c > 0, so no solution exists" : "u + c solves it for every c > 0, so the solution is not unique");
+  if (problem.coverage.pieces > 1) {
+    ItemGraph graph;
+    graph.numItems    = space.numLocal;
+    graph.numCells    = space.NumCells();
+    graph.per         = space.Nb();
+    graph.cellItems   = [&](PetscInt c) { return space.Dofs(c); };
+    graph.shareOwners = [&](std::vector<PetscInt> &v) { return SpaceShareOwners(space, v); };
+    PetscCall(ConnectedComponents(comm, graph, piece, &count));
+  }
+  // Per piece: the load's sum and its sum of absolute values over the owned DOFs, whether it has a
+  // Dirichlet DOF.
+  std::vector<PetscReal> sums(3 * count, 0.0);
+  PetscInt               rstart, n;
+  PetscCall(VecGetOwnershipRange(load, &rstart, NULL));
+  PetscCall(VecGetLocalSize(load, &n));
+  PetscCall(VecGetArrayRead(load, &l));
+  for (PetscInt i = 0; i < space.numLocal; ++i) {
+    const PetscInt k = piece[i];
+    if (k < 0) continue;
+    if (space.kindLocal[i] == kDirichlet) sums[3 * k + 2] = 1;
+    PetscInt g;
+    PetscCall(ISLocalToGlobalMappingApply(space.ltog, 1, &i, &g));
+    if (g < rstart || g >= rstart + n) continue; // a copy of another rank's DOF
+    sums[3 * k] += PetscRealPart(l[g - rstart]);
+    sums[3 * k + 1] += PetscAbsScalar(l[g - rstart]);
+  }
+  PetscCall(VecRestoreArrayRead(load, &l));
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, sums.data(), (PetscMPIInt)sums.size(), MPIU_REAL, MPI_SUM, comm));
+  std::vector<PetscInt> bad;
+  for (PetscInt k = 0; k < count; ++k)
+    if (sums[3 * k + 2] == 0 && !(sums[3 * k] < -1e-10 * sums[3 * k + 1])) bad.push_back(k);
+  if (bad.empty()) PetscFunctionReturn(0);
+  const PetscReal total = sums[3 * bad[0]], size = sums[3 * bad[0] + 1];
+  const char     *why   = total > 1e-10 * size ? "u + c lowers the energy for every c > 0, so no solution exists" : "u + c solves it for every c > 0, so the solution is not unique";
+  if (count == 1)
+    SIGNORINI_INPUT_ERROR(comm, "options -f, -g: the scene has no Dirichlet part, so the load must push u towards the obstacle, but its total (int f + int g over Gamma_N) is %.3g (%.3g in absolute value): %s; make the total negative or name a Dirichlet part", (double)total, (double)size, why);
+  // Name the piece by a point that does not depend on the ranks (the first bad piece in that order).
+  std::vector<PetscInt> cellPiece(space.NumCells());
+  for (PetscInt c = 0; c < space.NumCells(); ++c) cellPiece[c] = piece[space.Dofs(c)[0]];
+  std::vector<std::array<PetscReal, 3>> lowest;
+  PetscCall(LowestPoints(comm, space.dim, space.NumCells(), cellPiece, count, [&](PetscInt c, PetscReal *x) { SimplexCentroid(space.dim, space.X(c), x); }, lowest));
+  PetscInt first = bad[0];
+  for (PetscInt k : bad)
+    if (lowest[k] < lowest[first]) first = k;
+  const PetscReal t = sums[3 * first], a = sums[3 * first + 1];
+  SIGNORINI_INPUT_ERROR(comm, "options -f, -g: the mesh is in %d pieces, and %d of them (one near (%s)) %s contact but no Dirichlet faces, so the load must push each such piece towards the obstacle, but the total there (int f + int g over Gamma_N) is %.3g (%.3g in absolute value): %s; make it negative or give that piece a Dirichlet face",
+                        (int)count, (int)bad.size(), CoordinatesText(space.dim, lowest[first].data()).c_str(), bad.size() == 1 ? "has" : "have", (double)t, (double)a,
+                        t > 1e-10 * a ? "u + c lowers the energy there for every c > 0, so no solution exists" : "u + c solves it there for every c > 0, so the solution is not unique");
 }
 
 PetscErrorCode AssembleSystem(const Space &space, const Problem &problem, const AssemblyOptions &opts, System &sys)
@@ -403,7 +452,7 @@ PetscErrorCode AssembleSystem(const Space &space, const Problem &problem, const 
   PetscCall(VecSet(sys.load, 0));
   PetscCall(DMLocalToGlobal(space.dm, loc, ADD_VALUES, sys.load));
   PetscCall(MatAssemblyEnd(sys.A, MAT_FINAL_ASSEMBLY));
-  if (problem.HasContact() && space.numDirichletGlobal == 0) PetscCall(CheckLoadTowardsObstacle(sys.load));
+  if (problem.HasContact() && (space.numDirichletGlobal == 0 || problem.coverage.contactOnly > 0)) PetscCall(CheckLoadTowardsObstacle(space, problem, sys.load));
 
   // Dirichlet values: every rank evaluates u_D at its own copies of shared DOFs, so the values agree.
   PetscCall(VecSet(loc, 0));

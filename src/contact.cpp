@@ -450,7 +450,8 @@ static PetscErrorCode CheckContactSolver(SNES snes)
   PetscFunctionReturn(0);
 }
 
-static PetscErrorCode SolveVI(const Space &space, const Problem &problem, const System &sys, Vec lower, Vec u, SolveResult &r, const SolveOptions &opts, const DataScale &scale)
+// started: u is a start other than u_D (a guess, or StartInFullContact), whose own residual rtol must not be relative to.
+static PetscErrorCode SolveVI(const Space &space, const Problem &problem, const System &sys, Vec lower, Vec u, SolveResult &r, const SolveOptions &opts, const DataScale &scale, bool started)
 {
   EnergyStop          energyStop;
   KKTStop             kktStop;
@@ -494,9 +495,10 @@ static PetscErrorCode SolveVI(const Space &space, const Problem &problem, const 
   const PetscReal target = PetscMax(atol, rtol * f0), rtolAsked = rtol, atolAsked = atol;
   r.defaultTarget        = kSnesRtol * f0;
   PetscCall(LoosenedStoppingTest(snes, atol, rtol, r));
-  if (opts.initialGuess) {
+  if (started) {
     // relative to the guess's own residual, which may be larger (a prolongated guess carries the
-    // interpolation error), rtol would stop earlier than the start from u_D: the target alone decides
+    // interpolation error) or far smaller (the start in full contact may solve it), rtol would stop earlier
+    // than the start from u_D, or never: the target alone decides
     atol = target;
     rtol = 0;
   }
@@ -788,6 +790,53 @@ static PetscErrorCode TimeLinearSolve(const System &sys, SolveResult &r)
   PetscFunctionReturn(0);
 }
 
+// A piece of the domain with contact but no Dirichlet face (the whole domain without a Dirichlet part;
+// BoundaryCoverage::contactOnly) has the constants in the kernel of its block of A: the reduced-space
+// Newton step is singular there while none of its contact DOFs is active, as from u_D wherever psi lies
+// below it, and the solve ended in DIVERGED_LINEAR_SOLVE. This start, the solution with all of Gamma_C
+// held at psi, is one from which it is not: on such a piece the reactions on Gamma_C sum to minus the
+// piece's load total, which is negative (CheckLoadTowardsObstacle), so one of them at least is positive
+// and starts active; every Newton step ends with the reactions on its active set summing the same way,
+// so one stays active. It is a start only: with the default linear solver (no options), kept only where
+// that converges.
+static PetscErrorCode StartInFullContact(const Space &space, const System &sys, Vec lower, Vec u, PetscInt *its)
+{
+  Mat                A;
+  Vec                b, x;
+  KSP                ksp;
+  KSPConvergedReason reason;
+  PetscInt           rstart;
+  PetscFunctionBeginUser;
+  PetscCall(MatDuplicate(sys.A, MAT_COPY_VALUES, &A));
+  PetscCall(VecDuplicate(sys.b, &b));
+  PetscCall(VecDuplicate(u, &x));
+  PetscCall(VecCopy(sys.b, b));
+  PetscCall(VecCopy(u, x)); // u_D on Gamma_D and, projected, psi on Gamma_C where psi lies above u_D
+  PetscCall(VecPointwiseMax(x, x, lower));
+  PetscCall(VecGetOwnershipRange(u, &rstart, NULL));
+  std::vector<PetscInt> rows(space.contactOwned);
+  for (PetscInt &i : rows) i += rstart;
+  std::vector<PetscScalar> psi(rows.size());
+  PetscCall(VecGetValues(lower, (PetscInt)rows.size(), rows.data(), psi.data()));
+  PetscCall(VecSetValues(x, (PetscInt)rows.size(), rows.data(), psi.data(), INSERT_VALUES));
+  PetscCall(VecAssemblyBegin(x));
+  PetscCall(VecAssemblyEnd(x));
+  PetscCall(MatZeroRowsColumns(A, (PetscInt)rows.size(), rows.data(), 1.0, x, b));
+  PetscCall(KSPCreate(PetscObjectComm((PetscObject)u), &ksp));
+  PetscCall(KSPSetOperators(ksp, A, A));
+  PetscCall(ConfigureKSP(ksp));
+  PetscCall(KSPSetInitialGuessNonzero(ksp, PETSC_TRUE));
+  PetscCall(KSPSolve(ksp, b, x));
+  PetscCall(KSPGetConvergedReason(ksp, &reason));
+  PetscCall(KSPGetIterationNumber(ksp, its));
+  if (reason > 0) PetscCall(VecCopy(x, u));
+  PetscCall(KSPDestroy(&ksp));
+  PetscCall(MatDestroy(&A));
+  PetscCall(VecDestroy(&b));
+  PetscCall(VecDestroy(&x));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Solve(const Space &space, const Problem &problem, const System &sys, Vec u, SolveResult &r, const SolveOptions &opts)
 {
   MPI_Comm       comm  = PetscObjectComm((PetscObject)u);
@@ -821,8 +870,13 @@ PetscErrorCode Solve(const Space &space, const Problem &problem, const System &s
   // Start inside K_h: from u_D, or from the guess with u_D on Gamma_D and u >= psi on Gamma_C.
   if (!opts.initialGuess) PetscCall(VecCopy(sys.uD, u));
   PetscCall(ProjectOntoConstraints(sys, space.dirichletOwned, lower, u));
-  if (r.vi) PetscCall(SolveVI(space, problem, sys, lower, u, r, opts, scale));
-  else PetscCall(SolveLinear(space, sys, u, r, opts.kktTolerance, std::ldexp(1.0, -(int)(scale.u + scale.rows))));
+  PetscInt   startIts = 0;
+  const bool inContact = r.vi && !opts.initialGuess && (space.numDirichletGlobal == 0 || problem.coverage.contactOnly > 0);
+  if (inContact) PetscCall(StartInFullContact(space, sys, lower, u, &startIts));
+  if (r.vi) {
+    PetscCall(SolveVI(space, problem, sys, lower, u, r, opts, scale, opts.initialGuess || inContact));
+    r.kspIts += startIts; // the start's linear solve counts among the solve's KSP iterations
+  } else PetscCall(SolveLinear(space, sys, u, r, opts.kktTolerance, std::ldexp(1.0, -(int)(scale.u + scale.rows))));
   PetscCall(SecondsSince(comm, t0, &r.solveSeconds));
   PetscCall(StagePop(Stage::Solve));
   if (opts.compareLinear) PetscCall(TimeLinearSolve(sys, r));

@@ -1,9 +1,11 @@
 #include "signorini/problem.h"
 
+#include "signorini/components.h"
 #include "signorini/mesh.h"
 #include "signorini/options.h"
 
 #include <algorithm>
+#include <tuple>
 
 namespace signorini {
 
@@ -156,6 +158,66 @@ static PetscErrorCode CheckCellSets(DM dm, PetscInt dim, const Problem &p)
   SIGNORINI_INPUT_ERROR(comm, "option %s: '%s' uses cell_set, but %d of the %d cells of the coarse mesh %s in no \"Cell Sets\" (one near (%s)): cell_set would read -1 there", uses->Option().c_str(), uses->Text().c_str(), (int)counts[1], (int)counts[0], counts[1] == 1 ? "is" : "are", CoordinatesText(dim, x).c_str());
 }
 
+// The scene's parts determine u piece by piece: a domain in several pieces (cells joined through faces;
+// pieces that touch at a vertex or an edge are apart, since such a point carries no trace in H^1) needs a
+// Dirichlet or a contact face on each. A piece with neither was solved as a singular system and ended in
+// a linear solver's failure that named neither. Pieces with contact but no Dirichlet face are counted for
+// the assembly's check of their loads (CheckLoadTowardsObstacle).
+static PetscErrorCode CheckPieces(DM dm, PetscInt dim, const std::vector<char> &kind, BoundaryCoverage &b)
+{
+  MPI_Comm              comm = PetscObjectComm((PetscObject)dm);
+  PetscInt              pStart, pEnd, cStart, cEnd, count;
+  PetscSF               sf;
+  std::vector<PetscInt> component;
+  PetscFunctionBeginUser;
+  PetscCall(DMPlexGetChart(dm, &pStart, &pEnd));
+  PetscCall(DMPlexGetHeightStratum(dm, 0, &cStart, &cEnd));
+  PetscCall(DMGetPointSF(dm, &sf));
+  ItemGraph graph; // items: the mesh points (faces in the lists); cells: the cones
+  graph.numItems  = pEnd - pStart;
+  graph.numCells  = cEnd - cStart;
+  graph.per       = dim + 1;
+  std::vector<PetscInt> cones((cEnd - cStart) * (dim + 1));
+  for (PetscInt c = cStart; c < cEnd; ++c) {
+    const PetscInt *cone;
+    PetscCall(DMPlexGetCone(dm, c, &cone));
+    for (PetscInt k = 0; k <= dim; ++k) cones[(c - cStart) * (dim + 1) + k] = cone[k] - pStart;
+  }
+  graph.cellItems   = [&](PetscInt c) { return &cones[c * (dim + 1)]; };
+  graph.shareOwners = [&](std::vector<PetscInt> &v) {
+    PetscInt nroots;
+    PetscFunctionBeginUser;
+    PetscCall(PetscSFGetGraph(sf, &nroots, NULL, NULL, NULL));
+    if (nroots < 0) PetscFunctionReturn(0); // one rank: no shared points
+    const std::vector<PetscInt> roots(v);
+    PetscCall(PetscSFBcastBegin(sf, MPIU_INT, roots.data(), v.data(), MPI_REPLACE));
+    PetscCall(PetscSFBcastEnd(sf, MPIU_INT, roots.data(), v.data(), MPI_REPLACE));
+    PetscFunctionReturn(0);
+  };
+  PetscCall(ConnectedComponents(comm, graph, component, &count));
+  b.pieces = count, b.contactOnly = 0;
+  if (count <= 1) PetscFunctionReturn(0);
+  // Per piece: whether it has Dirichlet (bit 1) and contact (bit 2) faces.
+  std::vector<PetscInt> has(count, 0), cellPiece(cEnd - cStart);
+  for (PetscInt q = 0; q < pEnd - pStart; ++q)
+    if (component[q] >= 0 && kind[q]) has[component[q]] |= kind[q];
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, has.data(), (PetscMPIInt)count, MPIU_INT, MPI_BOR, comm));
+  for (PetscInt c = 0; c < cEnd - cStart; ++c) cellPiece[c] = component[cones[c * (dim + 1)]];
+  std::vector<std::array<PetscReal, 3>> lowest;
+  PetscCall(LowestPoints(comm, dim, cEnd - cStart, cellPiece, count, [&](PetscInt c, PetscReal *x) { (void)DMPlexComputeCellGeometryFVM(dm, cStart + c, NULL, x, NULL); }, lowest));
+  PetscInt                floating = 0, first = -1;
+  for (PetscInt k = 0; k < count; ++k) {
+    if (has[k] == 2) ++b.contactOnly;
+    if (has[k] != 0) continue;
+    ++floating;
+    if (first < 0 || lowest[k] < lowest[first]) first = k;
+  }
+  if (floating)
+    SIGNORINI_INPUT_ERROR(comm, "options -bc_dirichlet/-bc_contact: the mesh is in %d pieces (cells joined through faces), and %d of them (one near (%s)) %s neither a Dirichlet nor a contact face, so u is not determined there (singular problem)", (int)count, (int)floating,
+                          CoordinatesText(dim, lowest[first].data()).c_str(), floating == 1 ? "has" : "have");
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode ProblemCheckMesh(DM dm, Problem &p)
 {
   MPI_Comm              comm = PetscObjectComm((PetscObject)dm);
@@ -167,17 +229,18 @@ PetscErrorCode ProblemCheckMesh(DM dm, Problem &p)
   PetscCall(ProblemSetUp(comm, dim, p));
   PetscCall(DMGetLabel(dm, "Face Sets", &faceSets));
   PetscCall(DMPlexGetChart(dm, &pStart, &pEnd));
-  std::vector<char> named(pEnd - pStart, 0);
-  const std::pair<const char *, const std::vector<PetscInt> *> parts[] = {{"-bc_dirichlet", &p.dirichlet}, {"-bc_neumann", &p.neumann}, {"-bc_contact", &p.contact}};
-  for (const auto &part : parts)
-    for (PetscInt value : *part.second) {
+  std::vector<char> named(pEnd - pStart, 0), kind(pEnd - pStart, 0); // kind: 1 Dirichlet, 2 contact
+  const std::tuple<const char *, const std::vector<PetscInt> *, char> parts[] = {{"-bc_dirichlet", &p.dirichlet, 1}, {"-bc_neumann", &p.neumann, 0}, {"-bc_contact", &p.contact, 2}};
+  for (const auto &[option, values, k] : parts)
+    for (PetscInt value : *values) {
       PetscCall(LabelFaces(dm, faceSets, value, faces));
-      for (PetscInt f : faces) named[f - pStart] = 1;
+      for (PetscInt f : faces) named[f - pStart] = 1, kind[f - pStart] = k;
       PetscInt local = (PetscInt)faces.size(), global;
       PetscCallMPI(MPI_Allreduce(&local, &global, 1, MPIU_INT, MPI_SUM, comm));
-      if (global == 0) SIGNORINI_INPUT_ERROR(comm, "%s", MissingPartMessage(part.first, value).c_str());
+      if (global == 0) SIGNORINI_INPUT_ERROR(comm, "%s", MissingPartMessage(option, value).c_str());
     }
   PetscCall(CheckCellSets(dm, dim, p));
+  PetscCall(CheckPieces(dm, dim, kind, p.coverage));
   PetscCall(CountUnnamedBoundary(dm, named, p.coverage));
   const BoundaryCoverage &b = p.coverage;
   if (b.unnamed > 0)

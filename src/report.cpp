@@ -179,7 +179,7 @@ PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string
   o << "  \"dofs\": " << r.dofs << ",\n  \"dirichlet_dofs\": " << r.dirichletDofs << ",\n  \"contact_dofs\": " << r.contactDofs << ",\n";
   o << "  \"ranks\": " << r.ranks << ",\n  \"edge_cut\": " << r.edgeCut << ",\n  \"cells_per_rank\": [";
   for (size_t i = 0; i < r.cellsPerRank.size(); ++i) o << (i ? ", " : "") << r.cellsPerRank[i];
-  o << "],\n  \"boundary_faces_coarse\": " << r.boundary.faces << ",\n  \"unnamed_boundary_faces_coarse\": " << r.boundary.unnamed;
+  o << "],\n  \"boundary_faces_coarse\": " << r.boundary.faces << ",\n  \"unnamed_boundary_faces_coarse\": " << r.boundary.unnamed << ",\n  \"pieces_coarse\": " << r.boundary.pieces;
   o << ",\n  \"load_quadrature\": " << Str(r.loadRule) << ",\n";
   o << "  \"solver\": {\"type\": " << Str(r.solve.vi ? "snesvi" : "ksp") << ", \"converged_reason\": " << Str(r.solve.reason) << ", \"newton_iterations\": " << r.solve.newtonIts << ", \"ksp_iterations\": " << r.solve.kspIts;
   o << ", \"kkt_steps\": " << r.solve.kktSteps << ", \"solve_seconds\": " << Num(r.solve.solveSeconds) << ", \"nested\": " << (r.solve.levels.empty() ? "false" : "true");

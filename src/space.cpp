@@ -559,6 +559,26 @@ PetscErrorCode SpaceReleaseWorkVectors(const Space &s)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode SpaceShareOwners(const Space &s, std::vector<PetscInt> &values)
+{
+  Vec          loc, glob;
+  PetscScalar *a;
+  PetscFunctionBeginUser;
+  PetscCall(DMGetLocalVector(s.dm, &loc));
+  PetscCall(DMGetGlobalVector(s.dm, &glob));
+  PetscCall(VecGetArray(loc, &a));
+  for (PetscInt i = 0; i < s.numLocal; ++i) a[i] = (PetscScalar)values[i];
+  PetscCall(VecRestoreArray(loc, &a));
+  PetscCall(DMLocalToGlobal(s.dm, loc, INSERT_VALUES, glob)); // the owners' entries
+  PetscCall(DMGlobalToLocal(s.dm, glob, INSERT_VALUES, loc));
+  PetscCall(VecGetArray(loc, &a));
+  for (PetscInt i = 0; i < s.numLocal; ++i) values[i] = (PetscInt)PetscRealPart(a[i]);
+  PetscCall(VecRestoreArray(loc, &a));
+  PetscCall(DMRestoreGlobalVector(s.dm, &glob));
+  PetscCall(DMRestoreLocalVector(s.dm, &loc));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode SpaceReleaseMesh(Space &s)
 {
   PetscFunctionBeginUser;

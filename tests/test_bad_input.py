@@ -132,6 +132,7 @@ with tempfile.TemporaryDirectory() as inputs:
     os.mkdir(isdir)
     notdir = os.path.join(square, "summary.json")  # a path below a regular file
     square_scene = ["-bc_dirichlet", "3", "-bc_contact", "1", "-bc_neumann", "2,4"]
+    two_squares, corner_squares = (os.path.join(ROOT, "tests", "data", n + ".msh") for n in ("two-squares", "corner-squares"))
 
     # (name, extra options, text the message must contain, also on 2 ranks)
     cases = [
@@ -170,6 +171,15 @@ with tempfile.TemporaryDirectory() as inputs:
         ("no Dirichlet part, load pushing u away from the obstacle", ["-bc_dirichlet", "", "-bc_neumann", "2,3,4", "-f", "1 + x"], "no solution exists", True),
         ("no Dirichlet part, load of sum zero", ["-bc_dirichlet", "", "-bc_neumann", "2,3,4"], "not unique", True),
         ("no Dirichlet part, Neumann flux pushing u away", ["-bc_dirichlet", "", "-bc_neumann", "2,3,4", "-f", "-1", "-g", "y > 0.999 ? 2 : 0"], "no solution exists", True),
+        # the same piece by piece: tests/data/two-squares.msh is [0,1]^2 (bottom 1, sides 2, top 3) and [2,3] x [0,1]
+        # (bottom 4, sides and top 5); corner-squares.msh has the second square at [1,2]^2, touching the first at (1, 1)
+        ("a piece with neither a Dirichlet nor a contact face", ["-mesh_file", two_squares, "-bc_dirichlet", "3", "-bc_contact", "1", "-bc_neumann", "2,4,5"],
+         "the mesh is in 2 pieces (cells joined through faces), and 1 of them (one near (2.33333, 0.666667)) has neither a Dirichlet nor a contact face", True),
+        ("pieces touching at a vertex", ["-mesh_file", corner_squares, "-bc_dirichlet", "3", "-bc_contact", "1", "-bc_neumann", "2,4,5"],
+         "1 of them (one near (1.33333, 1.66667)) has neither", True),
+        ("a piece with contact only, load pushing it away", ["-mesh_file", two_squares, "-bc_dirichlet", "3", "-bc_contact", "1,4", "-bc_neumann", "2,5", "-f", "1"],
+         "1 of them (one near (2.33333, 0.666667)) has contact but no Dirichlet faces, so the load must push each such piece towards the obstacle, but the total there (int f + int g over Gamma_N) is 1", True),
+        ("a piece with contact only, load of sum zero", ["-mesh_file", two_squares, "-bc_dirichlet", "3", "-bc_contact", "1,4", "-bc_neumann", "2,5"], "so the solution is not unique", True),
         ("obstacle above u_D where Gamma_D meets Gamma_C", ["-bc_dirichlet", "3,4", "-bc_neumann", "2", "-psi", "0.5 - x"], "infeasible", True),
         ("f NaN", ["-f", "sqrt(x - 0.5)"], "option -f:", True),
         ("f infinite", ["-f", "1 / (x - x)"], "option -f:", True),
@@ -214,7 +224,7 @@ with tempfile.TemporaryDirectory() as inputs:
                          "unknown boundary label", "expression does not parse", "unknown variable", "zero cell count",
                          "negative refine", "dim 4", "unknown space", "same part named twice",
                          "study option without a study", "study table file without a study", "-output in a study",
-                         "no Dirichlet and no contact part (singular)", "exact gradient with 3 components in 2D",
+                         "no Dirichlet and no contact part (singular)", "a piece with neither a Dirichlet nor a contact face", "pieces touching at a vertex", "exact gradient with 3 components in 2D",
                          "singular, and a missing mesh file", "bad expression, and a missing mesh file",
                          "quadrilateral cells", "no cells of dimension 2 or 3", "curved surface mesh",
                          "duplicated node", "duplicated node, msh 4.1", "dangling node reference", "a triangle (a, a, b)", "triangles and a tetrahedron",

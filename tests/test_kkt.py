@@ -1,7 +1,8 @@
 """Both elements satisfy the discrete KKT conditions of the Signorini problem to solver tolerance on the
 paper's scene (invariants): u >= psi on Gamma_C, contact pressure >= 0, complementarity, and the equation
 on all DOFs off Gamma_C and Gamma_D; the contact set is a proper, non-empty part of Gamma_C; so too without a
-Dirichlet part, where the load pushes u towards the obstacle.
+Dirichlet part, where the load pushes u towards the obstacle, from an obstacle below the start and on a mesh in
+two pieces, one of them held by contact alone.
 The solve ends when these checks pass, not only its residual test: on a kappa jump of 1e6, where the stiff rows
 dominate the residual norm SNESVI tests, the default solver goes on beyond that test until the KKT conditions and
 the stationarity hold to -kkt_tolerance, and its u equals the high-contrast preset's (an independent run of 30
@@ -14,7 +15,7 @@ conditions on Gamma_C hold and the stationarity off it ends above the tolerance 
 contact part, whose restarts end at that floor."""
 import os
 
-from harness import OPTIONS, Checker, run, scene
+from harness import OPTIONS, ROOT, Checker, run, scene
 
 c = Checker()
 for n in [16, 64]:
@@ -44,6 +45,32 @@ for space in ["p1", "cr"]:
                 "%s: %d of %d contact DOFs active, worst relative KKT residual %.1e, stationarity %.1e" % (tag, k["active"], s["contact_dofs"], k["relative"], s["stationarity"]))
         energies.append(s["energy"])
     c.check(abs(energies[0] - energies[1]) <= 1e-10 * abs(energies[0]), "paper-5.1 without Dirichlet part %s: energy %.12g on 1 rank, %.12g on 2" % (space, energies[0], energies[1]))
+
+# The same with the obstacle below the start (u_D = 0) and a load that lifts the contact side (f = 1 there,
+# -3 above y = 1/2: total -1): from u_D no contact DOF starts active, and the first Newton step met the
+# singular block of the floating body (DIVERGED_LINEAR_SOLVE); the start in full contact keeps one active.
+# Piece by piece too: tests/data/two-squares.msh is [0,1]^2 (bottom 1, sides 2, top 3) and [2,3] x [0,1]
+# (bottom 4, sides and top 5), the second held by contact alone. Invariants: KKT, the same energy on 1 and 2
+# ranks, and the floating body resting on its obstacle (contact active).
+lift = ["-f", "y < 0.5 ? 1 : -3", "-psi", "-1 + 0.2 * sin(3 * x)"]
+two = ["-mesh_file", os.path.join(ROOT, "tests", "data", "two-squares.msh"), "-dim", "2", "-refine", "4", "-bc_dirichlet", "3", "-bc_contact", "1,4", "-bc_neumann", "2,5"]
+for name, args in [("paper-5.1 without Dirichlet part", scene("paper-5.1") + ["-box_faces", "32", "-bc_dirichlet", "", "-bc_neumann", "2,3,4"] + lift),
+                   ("two squares, one held by contact alone", scene("paper-5.1") + two + lift)]:
+    for space in ["p1", "cr"]:
+        energies = []
+        for ranks in [1, 2]:
+            rc, out, err, s = run(args + ["-space", space], ranks=ranks, check=False)
+            tag = "%s, obstacle below u_D, %s %d rank(s)" % (name, space, ranks)
+            c.check(rc == 0 and s is not None, "%s: ran (%s)" % (tag, "exit 0" if rc == 0 else (err + out).strip().splitlines()[0]))
+            if rc != 0 or s is None:
+                continue
+            k = s["kkt"]
+            c.check(0 < k["active"] and k["relative"] <= 1e-8 and s["stationarity"] <= 1e-8,
+                    "%s: %d of %d contact DOFs active, worst relative KKT residual %.1e, stationarity %.1e" % (tag, k["active"], s["contact_dofs"], k["relative"], s["stationarity"]))
+            c.check(s["pieces_coarse"] == (2 if "two" in name else 1), "%s: the mesh in %d piece(s)" % (tag, s["pieces_coarse"]))
+            energies.append(s["energy"])
+        if len(energies) == 2:
+            c.check(abs(energies[0] - energies[1]) <= 1e-10 * abs(energies[0]), "%s %s: energy %.12g on 1 rank, %.12g on 2" % (name, space, energies[0], energies[1]))
 
 # A contact part whose DOFs all lie on Gamma_D (P1 on one square: the bottom's two vertices are also on the
 # Dirichlet sides) leaves nothing to check: the line says so, and the summary's minima and maxima are null,

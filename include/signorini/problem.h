@@ -11,10 +11,13 @@
 namespace signorini {
 
 // The boundary faces of the coarse mesh (ProblemCheckMesh): all, and those in no named part, where
-// kappa du/dn = 0 holds; the centroid of one of them.
+// kappa du/dn = 0 holds; the centroid of one of them. The pieces of the domain (components.h: cells
+// joined through their faces; refinement keeps them), and how many have contact but no Dirichlet faces:
+// the assembly checks their loads (they must push each such piece towards the obstacle).
 struct BoundaryCoverage {
   PetscInt  faces = 0, unnamed = 0;
   PetscReal example[3] = {0, 0, 0};
+  PetscInt  pieces = 1, contactOnly = 0;
 };
 
 struct Problem {

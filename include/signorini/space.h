@@ -284,5 +284,8 @@ PetscErrorCode SpaceSectionDM(const Space &space, DM *dm);
 // The DM keeps the work vectors of DMGetLocalVector/DMGetGlobalVector after they are restored, for the
 // next caller; at 10^7 DOFs each is 80 MB that should not stay through a solve. Frees them.
 PetscErrorCode SpaceReleaseWorkVectors(const Space &space);
+// Collective: every local copy of a DOF another rank owns takes the owner's entry of `values` (one per
+// local DOF; integers up to 2^53, carried in the space's vectors).
+PetscErrorCode SpaceShareOwners(const Space &space, std::vector<PetscInt> &values);
 
 } // namespace signorini
