@@ -1041,6 +1041,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   std::vector<PetscInt>  cells;
   std::vector<PetscReal> out;
   Patch                  patch(space.dim, cd.anyCoupled);
+  PetscInt               failed = -1; // the vertex of a singular patch problem
   // Patches on this rank alone, in the order of `order`.
   PetscCall(PetscLogEventBegin(patchEvent, 0, 0, 0, 0));
   const PetscInt kAhead = 4;
@@ -1067,6 +1068,7 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
       corners[e] = ViewOf(cd, space, cells[e], at[e] - cells[e] * nb);
     }
     ok = patch.Solve(space.kindLocal[v], corners.data(), n, out.data(), generic);
+    if (!ok) failed = v;
     for (PetscInt e = 0; e < n && ok; ++e)
       for (PetscInt j = 0; j < nb; ++j) r.flux[cells[e] * nb + j] += out[e * nb + j];
   }
@@ -1095,7 +1097,6 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
     if (owned(v)) rootKind[gidx[v] - ranges[rank]] = space.kindLocal[v];
   std::vector<Corner> leafCorners(leafAt.size()), rootCorners(nmulti);
   for (size_t l = 0; l < leafAt.size(); ++l) FillCorner(cd, space, gidx, leafAt[l] / nb, leafAt[l] % nb, leafCorners[l]);
-  PetscCall(ISLocalToGlobalMappingRestoreIndices(space.ltog, &gidx));
   MPI_Datatype cornerType, fluxType;
   PetscCallMPI(MPI_Type_contiguous((int)sizeof(Corner), MPI_BYTE, &cornerType));
   PetscCallMPI(MPI_Type_commit(&cornerType));
@@ -1109,7 +1110,10 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
     corners.resize(degree[i]);
     for (PetscInt e = 0; e < degree[i]; ++e) corners[e] = ViewOf(rootCorners[off + e]);
     ok = patch.Solve(rootKind[i], corners.data(), degree[i], &rootFlux[off * nb], generic);
+    for (PetscInt v = 0; v < nv && !ok; ++v)
+      if (owned(v) && gidx[v] - ranges[rank] == i) failed = v;
   }
+  PetscCall(ISLocalToGlobalMappingRestoreIndices(space.ltog, &gidx));
   PetscCall(PetscSFScatterBegin(sf, fluxType, rootFlux.data(), leafFlux.data()));
   PetscCall(PetscSFScatterEnd(sf, fluxType, rootFlux.data(), leafFlux.data()));
   for (size_t l = 0; l < leafAt.size(); ++l)
@@ -1117,7 +1121,13 @@ PetscErrorCode ReconstructP1(const Space &space, const Problem &problem, const S
   PetscCallMPI(MPI_Type_free(&cornerType));
   PetscCallMPI(MPI_Type_free(&fluxType));
   PetscCall(PetscSFDestroy(&sf));
-  PetscCall(CheckAll(comm, ok, "estimate: a vertex patch problem of the P1 flux reconstruction is singular"));
+  // A patch problem is singular only where the patch's cells are not joined through faces containing its
+  // vertex: a mesh pinched there (two bodies, or two parts of one, touching at that vertex or along an
+  // edge through it). P1 functions are continuous at such a vertex and H^1 functions need not be, so the
+  // residual does not balance on each part of the patch and no flux equilibrates it.
+  PetscCall(CheckAll(comm, ok,
+                     Format("estimate: the cells around the vertex at (%s) are not joined through faces (the mesh is pinched there: its parts touch only at that vertex or along an edge), where P1 functions are continuous and H^1 functions need not be, so no equilibrated P1 flux exists on that vertex patch; use -space cr, or -estimate none to solve without an estimate",
+                            failed >= 0 ? CoordinatesText(space.dim, &space.vertX[failed * space.dim]).c_str() : "?")));
   std::vector<PetscInt>().swap(list); // their memory for fluxTerm: the estimate's peak stays where it was
   cd.cell.reset();
   PetscCall(PetscLogEventBegin(termEvent, 0, 0, 0, 0));

@@ -180,6 +180,9 @@ with tempfile.TemporaryDirectory() as inputs:
         ("a piece with contact only, load pushing it away", ["-mesh_file", two_squares, "-bc_dirichlet", "3", "-bc_contact", "1,4", "-bc_neumann", "2,5", "-f", "1"],
          "1 of them (one near (2.33333, 0.666667)) has contact but no Dirichlet faces, so the load must push each such piece towards the obstacle, but the total there (int f + int g over Gamma_N) is 1", True),
         ("a piece with contact only, load of sum zero", ["-mesh_file", two_squares, "-bc_dirichlet", "3", "-bc_contact", "1,4", "-bc_neumann", "2,5"], "so the solution is not unique", True),
+        # P1 couples the two squares at (1, 1), where H^1 does not: no equilibrated flux on that vertex's patch
+        ("P1 estimate on a pinched mesh", ["-mesh_file", corner_squares, "-bc_dirichlet", "3", "-bc_contact", "1,4", "-bc_neumann", "2,5", "-f", "-1", "-psi", "-1", "-space", "p1"],
+         "estimate: the cells around the vertex at (1, 1) are not joined through faces", True),
         ("obstacle above u_D where Gamma_D meets Gamma_C", ["-bc_dirichlet", "3,4", "-bc_neumann", "2", "-psi", "0.5 - x"], "infeasible", True),
         ("f NaN", ["-f", "sqrt(x - 0.5)"], "option -f:", True),
         ("f infinite", ["-f", "1 / (x - x)"], "option -f:", True),
