@@ -38,7 +38,7 @@ PetscErrorCode MeshOptionsFromCommandLine(MPI_Comm comm, MeshOptions &o)
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, "", "Mesh options", "signorini");
   PetscCall(OptionString(PetscOptionsObject, "-mesh_file", "Gmsh .msh file (physical groups name boundary parts); default: built-in box", o.file));
-  PetscCall(OptionInt(PetscOptionsObject, "-dim", "Dimension of the built-in box (2 or 3)", o.dim, 2, 3));
+  PetscCall(OptionInt(PetscOptionsObject, "-dim", "Dimension of the built-in box (2 or 3); with -mesh_file, the dimension the file's mesh must have", o.dim, 2, 3, &o.dimSet));
   faces.assign(o.faces, o.faces + o.dim); // the defaults, as -help shows them
   lower.assign(o.lower, o.lower + o.dim);
   upper.assign(o.upper, o.upper + o.dim);
@@ -471,6 +471,10 @@ static PetscErrorCode CreateFromGmsh(MPI_Comm comm, const MeshOptions &o, DM *dm
       if (!ierr) {
         problem = CheckCoincidentVertices(test, name, nodes);
         if (problem.empty()) problem = CheckCoarseMesh(test, name);
+        // A scene's -dim with another file's mesh: its data and options were written for the other dimension.
+        PetscInt dim;
+        PetscCall(DMGetDimension(test, &dim));
+        if (problem.empty() && o.dimSet && dim != o.dim) problem = Format("options -dim %d and -mesh_file: the mesh of '%s' is %dD; give -dim %d, or no -dim", (int)o.dim, o.file.c_str(), (int)dim, (int)dim);
         PetscCall(DMDestroy(&test));
       }
     }

@@ -132,7 +132,7 @@ with tempfile.TemporaryDirectory() as inputs:
     os.mkdir(isdir)
     notdir = os.path.join(square, "summary.json")  # a path below a regular file
     square_scene = ["-bc_dirichlet", "3", "-bc_contact", "1", "-bc_neumann", "2,4"]
-    two_squares, corner_squares = (os.path.join(ROOT, "tests", "data", n + ".msh") for n in ("two-squares", "corner-squares"))
+    two_squares, corner_squares, cube = (os.path.join(ROOT, "tests", "data", n + ".msh") for n in ("two-squares", "corner-squares", "cube"))
 
     # (name, extra options, text the message must contain, also on 2 ranks)
     cases = [
@@ -183,6 +183,8 @@ with tempfile.TemporaryDirectory() as inputs:
         # P1 couples the two squares at (1, 1), where H^1 does not: no equilibrated flux on that vertex's patch
         ("P1 estimate on a pinched mesh", ["-mesh_file", corner_squares, "-bc_dirichlet", "3", "-bc_contact", "1,4", "-bc_neumann", "2,5", "-f", "-1", "-psi", "-1", "-space", "p1"],
          "estimate: the cells around the vertex at (1, 1) are not joined through faces", True),
+        # a scene's -dim against another file's mesh
+        ("-dim 2 with a 3D mesh file", ["-mesh_file", cube], "options -dim 2 and -mesh_file: the mesh of '%s' is 3D" % cube, True),
         ("obstacle above u_D where Gamma_D meets Gamma_C", ["-bc_dirichlet", "3,4", "-bc_neumann", "2", "-psi", "0.5 - x"], "infeasible", True),
         ("f NaN", ["-f", "sqrt(x - 0.5)"], "option -f:", True),
         ("f infinite", ["-f", "1 / (x - x)"], "option -f:", True),
@@ -227,7 +229,7 @@ with tempfile.TemporaryDirectory() as inputs:
                          "unknown boundary label", "expression does not parse", "unknown variable", "zero cell count",
                          "negative refine", "dim 4", "unknown space", "same part named twice",
                          "study option without a study", "study table file without a study", "-output in a study",
-                         "no Dirichlet and no contact part (singular)", "a piece with neither a Dirichlet nor a contact face", "pieces touching at a vertex", "exact gradient with 3 components in 2D",
+                         "no Dirichlet and no contact part (singular)", "a piece with neither a Dirichlet nor a contact face", "pieces touching at a vertex", "-dim 2 with a 3D mesh file", "exact gradient with 3 components in 2D",
                          "singular, and a missing mesh file", "bad expression, and a missing mesh file",
                          "quadrilateral cells", "no cells of dimension 2 or 3", "curved surface mesh",
                          "duplicated node", "duplicated node, msh 4.1", "dangling node reference", "a triangle (a, a, b)", "triangles and a tetrahedron",

@@ -2,9 +2,12 @@
 test_input_numbers); an option of a PETSc family that nothing read (-snes_monitr, or -snes_rtol in a scene
 without contact, where no SNES is created) is listed at the end of the run, and so is an option of this
 program that the run has no use for (solver options without a contact part, nested-iteration options
-without levels, the degree of the centroid rule, non-zero data of a boundary part the scene does not have);
+without levels, the degree of the centroid rule, non-zero data of a boundary part the scene does not have, the
+box's options with a mesh file);
 a run with only valid options lists none."""
-from harness import Checker, run, scene
+import os
+
+from harness import ROOT, Checker, run, scene
 
 c = Checker()
 base = scene("paper-5.1") + ["-box_faces", "8"]
@@ -40,6 +43,13 @@ for args, option in [(["-bc_neumann", "", "-bc_dirichlet", "2,3,4", "-g", "1"], 
                      (["-bc_dirichlet", "", "-bc_neumann", "2,3,4", "-f", "-1", "-u_D", "1"], "-u_D 1")]:
     w = warnings(args)
     c.check(len(w) == 1 and ("option %s was not used" % option) in w[0] and "the scene has no" in w[0], "%s without its part: reported: %s" % (option, w))
+# The box's options with a mesh file (a scene file's box, given another mesh): each reported, with its value.
+square = ["-mesh_file", os.path.join(ROOT, "tests", "data", "square.msh"), "-bc_dirichlet", "3", "-bc_contact", "1", "-bc_neumann", "2,4"]
+w = warnings(square + ["-box_upper", "2"])
+c.check(len(w) == 3 and all("the mesh is read from -mesh_file" in l for l in w) and all(("option %s" % o) in "".join(w) for o in ["-box_faces 8", "-box_diagonal backslash", "-box_upper 2"]),
+        "box options with -mesh_file: reported: %s" % w)
+w = [l for l in run(scene("stiff-below-h2") + ["-mesh_file", os.path.join(ROOT, "petsc-options", "meshes", "split-bottom.msh"), "-refine", "1"])[1].splitlines() if l.startswith("signorini: warning: option")]
+c.check(not w, "stiff-below-h2 (mesh file, -dim 2 of its mesh): nothing reported: %s" % w)
 for args in [["-bc_contact", "", "-bc_neumann", "1,2,4"], ["-bc_neumann", "", "-bc_dirichlet", "2,3,4"]]:
     w = warnings(args)
     c.check(not w, "%s: the scene file's zero data, nothing reported: %s" % (" ".join(args), w))

@@ -24,6 +24,7 @@ enum class Refinement { Direct, Transform };
 struct MeshOptions {
   std::string file;                 // Gmsh .msh file; empty: built-in box
   PetscInt    dim        = 2;       // box dimension
+  bool        dimSet     = false;   // -dim given: with -mesh_file, the file's mesh must have it
   PetscInt    faces[3]   = {8, 8, 8};
   PetscReal   lower[3]   = {0, 0, 0};
   PetscReal   upper[3]   = {1, 1, 1};
