@@ -349,7 +349,7 @@ static void DirichletValues(const Space &space, const Problem &problem, const Sy
 // 1). A solution exists only where l(1) < 0, i.e. the load pushes u towards the obstacle: with l(1) = 0
 // every u + c solves it too, with l(1) > 0 the energy has no minimum, and the solve would fail with a
 // linear solver's message that names neither. Sums within round-off of 0 count as 0. The same holds for
-// each piece of a domain in several pieces that has contact but no Dirichlet face (BoundaryCoverage),
+// each piece of a domain in several pieces that has contact but no Dirichlet face (CoarseFindings),
 // with the sum over that piece's DOFs: the pieces of the space (DOFs joined through cells) are found only
 // then, as the whole domain is one piece otherwise.
 static PetscErrorCode CheckLoadTowardsObstacle(const Space &space, const Problem &problem, Vec load)

@@ -791,7 +791,7 @@ static PetscErrorCode TimeLinearSolve(const System &sys, SolveResult &r)
 }
 
 // A piece of the domain with contact but no Dirichlet face (the whole domain without a Dirichlet part;
-// BoundaryCoverage::contactOnly) has the constants in the kernel of its block of A: the reduced-space
+// CoarseFindings::contactOnly) has the constants in the kernel of its block of A: the reduced-space
 // Newton step is singular there while none of its contact DOFs is active, as from u_D wherever psi lies
 // below it, and the solve ended in DIVERGED_LINEAR_SOLVE. This start, the solution with all of Gamma_C
 // held at psi, is one from which it is not: on such a piece the reactions on Gamma_C sum to minus the

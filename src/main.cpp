@@ -283,7 +283,7 @@ static PetscErrorCode Run(MPI_Comm comm)
       const AdaptRow &a = report.adapt[k];
       if (a.error > 0 && a.eta / a.error < eta / error) eta = a.eta, error = a.error, where = Format(" at adaptive step %d", (int)k);
     }
-    PetscCall(WarnBoundBelowError(comm, eta, error, where));
+    PetscCall(WarnBoundBelowError(comm, eta, error, report.error.exactEnergy, where));
   }
   if (!s.summaryFile.empty()) PetscCall(ReportWriteJSON(comm, report, s.summaryFile));
 

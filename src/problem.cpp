@@ -1,6 +1,7 @@
 #include "signorini/problem.h"
 
 #include "signorini/components.h"
+#include "signorini/exactcheck.h"
 #include "signorini/mesh.h"
 #include "signorini/options.h"
 
@@ -89,7 +90,7 @@ static PetscErrorCode PointOfLowestRank(DM dm, PetscInt point, PetscReal x[3])
 // condition): right where it is meant (a symmetry plane), a silent wrong answer where a part was forgotten
 // or mistyped, so the run says so. A face with one cell on this rank lies on the domain's boundary unless
 // another rank holds its other cell, i.e. unless it is in the point SF (the mesh has no overlap).
-static PetscErrorCode CountUnnamedBoundary(DM dm, const std::vector<char> &named, BoundaryCoverage &b)
+static PetscErrorCode CountUnnamedBoundary(DM dm, const std::vector<char> &named, CoarseFindings &b)
 {
   MPI_Comm           comm = PetscObjectComm((PetscObject)dm);
   PetscSF            sf;
@@ -163,7 +164,7 @@ static PetscErrorCode CheckCellSets(DM dm, PetscInt dim, const Problem &p)
 // Dirichlet or a contact face on each. A piece with neither was solved as a singular system and ended in
 // a linear solver's failure that named neither. Pieces with contact but no Dirichlet face are counted for
 // the assembly's check of their loads (CheckLoadTowardsObstacle).
-static PetscErrorCode CheckPieces(DM dm, PetscInt dim, const std::vector<char> &kind, BoundaryCoverage &b)
+static PetscErrorCode CheckPieces(DM dm, PetscInt dim, const std::vector<char> &kind, CoarseFindings &b)
 {
   MPI_Comm              comm = PetscObjectComm((PetscObject)dm);
   PetscInt              pStart, pEnd, cStart, cEnd, count;
@@ -197,7 +198,7 @@ static PetscErrorCode CheckPieces(DM dm, PetscInt dim, const std::vector<char> &
   PetscCall(ConnectedComponents(comm, graph, component, &count));
   b.pieces = count, b.contactOnly = 0;
   if (count <= 1) PetscFunctionReturn(0);
-  // Per piece: whether it has Dirichlet (bit 1) and contact (bit 2) faces.
+  // Per piece: whether it has Dirichlet (bit 1), contact (bit 2) and Neumann (bit 4) faces.
   std::vector<PetscInt> has(count, 0), cellPiece(cEnd - cStart);
   for (PetscInt q = 0; q < pEnd - pStart; ++q)
     if (component[q] >= 0 && kind[q]) has[component[q]] |= kind[q];
@@ -207,8 +208,8 @@ static PetscErrorCode CheckPieces(DM dm, PetscInt dim, const std::vector<char> &
   PetscCall(LowestPoints(comm, dim, cEnd - cStart, cellPiece, count, [&](PetscInt c, PetscReal *x) { (void)DMPlexComputeCellGeometryFVM(dm, cStart + c, NULL, x, NULL); }, lowest));
   PetscInt                floating = 0, first = -1;
   for (PetscInt k = 0; k < count; ++k) {
-    if (has[k] == 2) ++b.contactOnly;
-    if (has[k] != 0) continue;
+    if ((has[k] & 3) == 2) ++b.contactOnly;
+    if ((has[k] & 3) != 0) continue;
     ++floating;
     if (first < 0 || lowest[k] < lowest[first]) first = k;
   }
@@ -229,8 +230,8 @@ PetscErrorCode ProblemCheckMesh(DM dm, Problem &p)
   PetscCall(ProblemSetUp(comm, dim, p));
   PetscCall(DMGetLabel(dm, "Face Sets", &faceSets));
   PetscCall(DMPlexGetChart(dm, &pStart, &pEnd));
-  std::vector<char> named(pEnd - pStart, 0), kind(pEnd - pStart, 0); // kind: 1 Dirichlet, 2 contact
-  const std::tuple<const char *, const std::vector<PetscInt> *, char> parts[] = {{"-bc_dirichlet", &p.dirichlet, 1}, {"-bc_neumann", &p.neumann, 0}, {"-bc_contact", &p.contact, 2}};
+  std::vector<char> named(pEnd - pStart, 0), kind(pEnd - pStart, 0); // kind: 1 Dirichlet, 2 contact, 4 Neumann
+  const std::tuple<const char *, const std::vector<PetscInt> *, char> parts[] = {{"-bc_dirichlet", &p.dirichlet, 1}, {"-bc_neumann", &p.neumann, 4}, {"-bc_contact", &p.contact, 2}};
   for (const auto &[option, values, k] : parts)
     for (PetscInt value : *values) {
       PetscCall(LabelFaces(dm, faceSets, value, faces));
@@ -241,8 +242,9 @@ PetscErrorCode ProblemCheckMesh(DM dm, Problem &p)
     }
   PetscCall(CheckCellSets(dm, dim, p));
   PetscCall(CheckPieces(dm, dim, kind, p.coverage));
+  PetscCall(CheckExactSolution(dm, p, kind, &p.coverage.exactFailed));
   PetscCall(CountUnnamedBoundary(dm, named, p.coverage));
-  const BoundaryCoverage &b = p.coverage;
+  const CoarseFindings &b = p.coverage;
   if (b.unnamed > 0)
     PetscCall(PetscPrintf(comm, "note: %d of the %d boundary faces of the coarse mesh %s in no part of -bc_dirichlet, -bc_neumann, -bc_contact (one near (%s)): kappa du/dn = 0 there\n", (int)b.unnamed, (int)b.faces, b.unnamed == 1 ? "is" : "are",
                           CoordinatesText(dim, b.example).c_str()));

@@ -309,7 +309,7 @@ PetscErrorCode ConvergenceStudy::Finish()
   const StudyRow *worst = nullptr; // the smallest index against the exact solution
   for (const StudyRow &r : rows_)
     if (r.hasExact && r.estimate.computed && r.exact.energy > 0 && (!worst || r.estimate.eta / r.exact.energy < worst->estimate.eta / worst->exact.energy)) worst = &r;
-  if (worst && o_.nested.solveTo != NestedOptions::Discretization) PetscCall(WarnBoundBelowError(comm, worst->estimate.eta, worst->exact.energy, Format(" (%s, N = %d)", worst->element.c_str(), (int)worst->N)));
+  if (worst && o_.nested.solveTo != NestedOptions::Discretization) PetscCall(WarnBoundBelowError(comm, worst->estimate.eta, worst->exact.energy, worst->exact.exactEnergy, Format(" (%s, N = %d)", worst->element.c_str(), (int)worst->N)));
   for (const std::string &file : {o_.file, o_.summary})
     if (!file.empty()) PetscCall(WriteJSON(comm, file, problem_.scene, o_, N0_ << Finest(), refDofs_, refNestedLevels_, rows_));
   for (MeshSolution &m : solved_) PetscCall(m.Destroy());

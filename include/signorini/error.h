@@ -9,6 +9,7 @@ namespace signorini {
 
 struct ErrorNorms {
   PetscReal l2 = 0, h1semi = 0, h1 = 0, energy = 0;
+  PetscReal exactEnergy = 0; // ||kappa^{1/2} grad u|| of the exact solution (ErrorAgainstExact; 0 elsewhere)
 };
 
 // Degree of the quadrature used for error integrals (exact for polynomial integrands of that degree).

@@ -10,14 +10,16 @@
 
 namespace signorini {
 
-// The boundary faces of the coarse mesh (ProblemCheckMesh): all, and those in no named part, where
-// kappa du/dn = 0 holds; the centroid of one of them. The pieces of the domain (components.h: cells
-// joined through their faces; refinement keeps them), and how many have contact but no Dirichlet faces:
-// the assembly checks their loads (they must push each such piece towards the obstacle).
-struct BoundaryCoverage {
+// What ProblemCheckMesh found on the coarse mesh: the boundary faces, all and those in no named part,
+// where kappa du/dn = 0 holds, and the centroid of one of them; the pieces of the domain (components.h:
+// cells joined through their faces; refinement keeps them), and how many have contact but no Dirichlet
+// faces (the assembly checks their loads: they must push each such piece towards the obstacle); how many
+// conditions of the scene the exact solution fails (exactcheck.h; -1 without one).
+struct CoarseFindings {
   PetscInt  faces = 0, unnamed = 0;
   PetscReal example[3] = {0, 0, 0};
   PetscInt  pieces = 1, contactOnly = 0;
+  PetscInt  exactFailed = -1;
 };
 
 struct Problem {
@@ -26,7 +28,7 @@ struct Problem {
   std::unique_ptr<Expression> f, g, uD, psi, kappa; // all but uD and psi may use cell_set ("Cell Sets" value, -1 if none)
   std::unique_ptr<Expression> exact, exactGrad;     // null when the scene has no exact solution
   std::string                 exactGradText;
-  BoundaryCoverage            coverage; // set by ProblemCheckMesh
+  CoarseFindings              coverage; // set by ProblemCheckMesh
   bool HasContact() const { return !contact.empty(); }
   bool HasNeumann() const { return !neumann.empty() && !g->IsZero(); }
   bool HasExact() const { return exact != nullptr; }
