@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -271,6 +272,31 @@ std::string GmshCheckFile(const std::string &file, const std::string &name, Gmsh
   }
   std::fclose(fp);
   return problem;
+}
+
+std::vector<GmshPhysicalName> GmshPhysicalNames(const std::string &file)
+{
+  std::vector<GmshPhysicalName> names;
+  FILE                         *fp = std::fopen(file.c_str(), "r");
+  if (!fp) return names;
+  Reader r(fp);
+  while (r.Next() && !r.Is("$Nodes"))
+    if (r.Is("$PhysicalNames")) {
+      if (!r.Next()) break;
+      const long n = std::atol(r.line);
+      for (long i = 0; i < n && r.Next(); ++i) {
+        int  dim, used = 0;
+        long tag;
+        if (std::sscanf(r.line, "%d %ld %n", &dim, &tag, &used) != 2) break;
+        std::string name(r.line + used);
+        while (!name.empty() && std::isspace((unsigned char)name.back())) name.pop_back();
+        if (name.size() >= 2 && name.front() == '"' && name.back() == '"') name = name.substr(1, name.size() - 2);
+        names.push_back({dim, tag, name});
+      }
+      break;
+    }
+  std::fclose(fp);
+  return names;
 }
 
 std::string CheckCoincidentVertices(DM dm, const std::string &name, const GmshNodes &nodes)

@@ -226,6 +226,30 @@ PetscErrorCode OptionIntList(OptionItems items, const char *name, const char *he
     items, name, help, values, set, [&](const std::string &full, const char *text, std::vector<PetscInt> &v) { return ReadIntList(full, text ? text : "", min, max, v); }, [](const std::vector<PetscInt> &v) { return Join(v, "%" PetscInt_FMT); });
 }
 
+PetscErrorCode OptionNamedIntList(OptionItems items, const char *name, const char *help, std::vector<PetscInt> &values, const std::map<std::string, std::vector<PetscInt>> &names, const std::string &known, bool *set)
+{
+  auto parse = [&](const std::string &full, const char *text, std::vector<PetscInt> &v) {
+    v.clear();
+    return ReadList(full, text ? text : "", [&](const std::string &part) {
+      const std::string item  = Trim(part);
+      PetscInt          x     = 0;
+      std::string       error = ReadInt(full, part, PETSC_MIN_INT, PETSC_MAX_INT, x); // a number is a number
+      if (error.empty()) {
+        v.push_back(x);
+        return error;
+      }
+      const auto it = names.find(item);
+      if (it != names.end()) {
+        v.insert(v.end(), it->second.begin(), it->second.end());
+        return std::string();
+      }
+      if (!std::isdigit((unsigned char)item[0]) && item[0] != '-' && item[0] != '+') error = Format("option %s: '%s' is neither a number nor the name of a part (%s)", full.c_str(), item.c_str(), known.c_str());
+      return error;
+    });
+  };
+  return Read(items, name, help, values, set, parse, [](const std::vector<PetscInt> &v) { return Join(v, "%" PetscInt_FMT); });
+}
+
 PetscErrorCode OptionRealList(OptionItems items, const char *name, const char *help, std::vector<PetscReal> &values, bool *set)
 {
   auto parse = [](const std::string &full, const char *text, std::vector<PetscReal> &v) {

@@ -2,10 +2,13 @@
 
 #include "signorini/components.h"
 #include "signorini/exactcheck.h"
+#include "signorini/gmsh.h"
 #include "signorini/mesh.h"
 #include "signorini/options.h"
 
 #include <algorithm>
+#include <cstdlib>
+#include <map>
 #include <tuple>
 
 namespace signorini {
@@ -19,16 +22,61 @@ static PetscErrorCode CheckDetermined(MPI_Comm comm, const Problem &p)
   PetscFunctionReturn(0);
 }
 
+// The names the boundary parts may be given by, besides their numbers: the box's sides, or the physical
+// names of dimension 1 and 2 in the mesh file (read on rank 0, up to its $Nodes; a name given to several
+// physical groups names them all). `known` lists them for the message on an unknown name.
+static PetscErrorCode PartNames(MPI_Comm comm, std::map<std::string, std::vector<PetscInt>> &names, std::string &known)
+{
+  char        file[PETSC_MAX_PATH_LEN] = "", dimText[64] = "2";
+  PetscBool   hasFile;
+  PetscMPIInt rank;
+  PetscFunctionBeginUser;
+  PetscCall(PetscOptionsGetString(NULL, NULL, "-mesh_file", file, sizeof file, &hasFile));
+  if (!hasFile || !file[0]) {
+    // (-dim read as text: its own reader refuses a bad value with the option's message)
+    PetscCall(PetscOptionsGetString(NULL, NULL, "-dim", dimText, sizeof dimText, NULL));
+    static const char *sides2[] = {"bottom", "right", "top", "left"}, *sides3[] = {"bottom", "top", "front", "back", "right", "left"};
+    const bool         three    = Trim(dimText) == "3";
+    known                       = three ? "the box's sides: bottom 1 (z = 0), top 2, front 3 (y = 0), back 4, right 5 (x = 1), left 6" : "the box's sides: bottom 1, right 2, top 3, left 4";
+    for (int k = 0; k < (three ? 6 : 4); ++k) names[three ? sides3[k] : sides2[k]] = {k + 1};
+    PetscFunctionReturn(0);
+  }
+  std::string text; // "tag name" lines
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  if (rank == 0)
+    for (const GmshPhysicalName &n : GmshPhysicalNames(file))
+      if (n.dim == 1 || n.dim == 2) text += Format("%ld %s\n", n.tag, n.name.c_str());
+  int length = (int)text.size();
+  PetscCallMPI(MPI_Bcast(&length, 1, MPI_INT, 0, comm));
+  text.resize(length);
+  PetscCallMPI(MPI_Bcast(text.data(), length, MPI_CHAR, 0, comm));
+  std::string list;
+  for (size_t pos = 0; pos < text.size();) {
+    const size_t      end  = text.find('\n', pos), space = text.find(' ', pos);
+    const PetscInt    tag  = (PetscInt)std::atol(text.substr(pos, space - pos).c_str());
+    const std::string name = text.substr(space + 1, end - space - 1);
+    std::vector<PetscInt> &tags = names[name];
+    if (std::find(tags.begin(), tags.end(), tag) == tags.end()) tags.push_back(tag);
+    list += Format("%s'%s' %d", list.empty() ? "" : ", ", name.c_str(), (int)tag);
+    pos = end + 1;
+  }
+  known = list.empty() ? Format("'%s' has no physical names", file) : Format("the physical names of '%s': %s", file, list.c_str());
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode ProblemFromCommandLine(MPI_Comm comm, Problem &p)
 {
   std::string f = "0", g = "0", uD = "0", psi = "0", kappa = "1", ex, exg;
   bool        hasExact = false, hasGrad = false;
+  std::map<std::string, std::vector<PetscInt>> names;
+  std::string                                  known;
   PetscFunctionBeginUser;
+  PetscCall(PartNames(comm, names, known));
   PetscOptionsBegin(comm, "", "Scene: boundary parts and data (expressions in x, y, z, cell_set; constant pi)", "signorini");
   PetscCall(OptionString(PetscOptionsObject, "-scene", "Name of the scene, reported in the summary", p.scene));
-  PetscCall(OptionIntList(PetscOptionsObject, "-bc_dirichlet", "Face Sets values of Gamma_D, comma separated", p.dirichlet, PETSC_MIN_INT, PETSC_MAX_INT));
-  PetscCall(OptionIntList(PetscOptionsObject, "-bc_neumann", "Face Sets values of Gamma_N", p.neumann, PETSC_MIN_INT, PETSC_MAX_INT));
-  PetscCall(OptionIntList(PetscOptionsObject, "-bc_contact", "Face Sets values of Gamma_C (u >= psi there)", p.contact, PETSC_MIN_INT, PETSC_MAX_INT));
+  PetscCall(OptionNamedIntList(PetscOptionsObject, "-bc_dirichlet", "Face Sets values of Gamma_D, comma separated, or their names (the box's sides bottom, right, top, left, in 3D bottom, top, front, back, right, left; a Gmsh file's physical names)", p.dirichlet, names, known));
+  PetscCall(OptionNamedIntList(PetscOptionsObject, "-bc_neumann", "Face Sets values (or names) of Gamma_N", p.neumann, names, known));
+  PetscCall(OptionNamedIntList(PetscOptionsObject, "-bc_contact", "Face Sets values (or names) of Gamma_C (u >= psi there)", p.contact, names, known));
   PetscCall(OptionString(PetscOptionsObject, "-f", "Source f in -div(kappa grad u) = f; cell_set is the Cell Sets value of the cell integrated over", f));
   PetscCall(OptionString(PetscOptionsObject, "-g", "Neumann flux g = kappa du/dn on Gamma_N; cell_set is that of the one cell next to the Neumann face", g));
   PetscCall(OptionString(PetscOptionsObject, "-u_D", "Dirichlet value on Gamma_D (a value at boundary points, which may touch cells of several sets: no cell_set)", uD));

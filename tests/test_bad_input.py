@@ -185,6 +185,9 @@ with tempfile.TemporaryDirectory() as inputs:
          "estimate: the cells around the vertex at (1, 1) are not joined through faces", True),
         # a scene's -dim against another file's mesh
         ("-dim 2 with a 3D mesh file", ["-mesh_file", cube], "options -dim 2 and -mesh_file: the mesh of '%s' is 3D" % cube, True),
+        # a part by a name the mesh does not have: the message lists the names it has
+        ("unknown name of a box side", ["-bc_contact", "bottm"], "option -bc_contact: 'bottm' is neither a number nor the name of a part (the box's sides: bottom 1, right 2, top 3, left 4)", False),
+        ("a name in a file without physical names", ["-mesh_file", two_squares, "-bc_dirichlet", "top"], "option -bc_dirichlet: 'top' is neither a number nor the name of a part ('%s' has no physical names)" % two_squares, False),
         ("obstacle above u_D where Gamma_D meets Gamma_C", ["-bc_dirichlet", "3,4", "-bc_neumann", "2", "-psi", "0.5 - x"], "infeasible", True),
         ("f NaN", ["-f", "sqrt(x - 0.5)"], "option -f:", True),
         ("f infinite", ["-f", "1 / (x - x)"], "option -f:", True),
@@ -229,7 +232,8 @@ with tempfile.TemporaryDirectory() as inputs:
                          "unknown boundary label", "expression does not parse", "unknown variable", "zero cell count",
                          "negative refine", "dim 4", "unknown space", "same part named twice",
                          "study option without a study", "study table file without a study", "-output in a study",
-                         "no Dirichlet and no contact part (singular)", "a piece with neither a Dirichlet nor a contact face", "pieces touching at a vertex", "-dim 2 with a 3D mesh file", "exact gradient with 3 components in 2D",
+                         "no Dirichlet and no contact part (singular)", "a piece with neither a Dirichlet nor a contact face", "pieces touching at a vertex", "-dim 2 with a 3D mesh file", "unknown name of a box side",
+                         "a name in a file without physical names", "exact gradient with 3 components in 2D",
                          "singular, and a missing mesh file", "bad expression, and a missing mesh file",
                          "quadrilateral cells", "no cells of dimension 2 or 3", "curved surface mesh",
                          "duplicated node", "duplicated node, msh 4.1", "dangling node reference", "a triangle (a, a, b)", "triangles and a tetrahedron",

@@ -2,8 +2,10 @@
 and the "Cell Sets" used by kappa. A linear exact solution is reproduced to round-off on both meshes with
 both elements, on 1 and 2 ranks; and a kappa that jumps between the two cell sets of the square gives the
 piecewise linear exact solution with continuous flux, again to round-off. A boundary part left out of the
-options gets kappa du/dn = 0 and a note with the number of its faces, counted independently from the file."""
+options gets kappa du/dn = 0 and a note with the number of its faces, counted independently from the file. The
+parts may be named: by a file's physical names, or the box's sides, the same run as by their numbers."""
 import os
+import tempfile
 
 from harness import ROOT, Checker, rel, run
 
@@ -119,4 +121,24 @@ for mesh, path, dirichlet, neumann, left_out in [("square", SQUARE, "3", "2", "4
                     "%s: energy %.15g, with the part named Neumann g = 0: %.15g" % (what, s["energy"], named["energy"]))
         c.check(named["unnamed_boundary_faces_coarse"] == 0 and named["boundary_faces_coarse"] == faces,
                 "%s, every part named, %s: %d of %d boundary faces in no part" % (mesh, space, named["unnamed_boundary_faces_coarse"], named["boundary_faces_coarse"]))
+# Boundary parts by name: the physical names of the file (one name given to two groups names both) and the
+# box's sides give the same run as their numbers (DOFs and energy to the last digit), on 1 and 2 ranks.
+with tempfile.TemporaryDirectory() as tmp:
+    named_square = os.path.join(tmp, "named.msh")
+    text = open(SQUARE).read()
+    names = '$PhysicalNames\n6\n1 1 "floor"\n1 2 "wall"\n1 3 "lid"\n1 4 "wall"\n2 1 "left half"\n2 2 "right half"\n$EndPhysicalNames\n'
+    open(named_square, "w").write(text.replace("$EndMeshFormat\n", "$EndMeshFormat\n" + names))
+    data = ["-f", "1 + x", "-u_D", "0", "-psi", "-0.01", "-g", "0.5"]
+    pairs = [("square by physical names", ["-mesh_file", named_square] + data, ["-bc_dirichlet", "lid", "-bc_neumann", "wall", "-bc_contact", "floor"],
+              ["-bc_dirichlet", "3", "-bc_neumann", "2,4", "-bc_contact", "1"]),
+             ("2D box by its sides' names", ["-box_faces", "8"] + data, ["-bc_dirichlet", "top", "-bc_neumann", "left, right", "-bc_contact", "bottom"],
+              ["-bc_dirichlet", "3", "-bc_neumann", "4,2", "-bc_contact", "1"]),
+             ("3D box by its sides' names", ["-dim", "3", "-box_faces", "4"] + data, ["-bc_dirichlet", "top", "-bc_neumann", "front,back,right,left", "-bc_contact", "bottom"],
+              ["-bc_dirichlet", "2", "-bc_neumann", "3,4,5,6", "-bc_contact", "1"])]
+    for what, base, by_name, by_number in pairs:
+        for ranks in [1, 2]:
+            _, _, _, a = run(base + by_name, ranks=ranks)
+            _, _, _, b = run(base + by_number, ranks=ranks)
+            c.check(a["dofs"] == b["dofs"] and a["energy"] == b["energy"] and a["unnamed_boundary_faces_coarse"] == 0,
+                    "%s, %d rank(s): %d DOFs, energy %.15g; by numbers %d, %.15g" % (what, ranks, a["dofs"], a["energy"], b["dofs"], b["energy"]))
 c.done()

@@ -24,6 +24,15 @@ struct GmshNodes {
 // other versions, text the scan does not understand). Fills `nodes` when the scan got through the file.
 std::string GmshCheckFile(const std::string &file, const std::string &name, GmshNodes &nodes);
 
+// The physical names of a Gmsh file ($PhysicalNames, before $Nodes in msh 2.2 and 4.1, ASCII or binary):
+// (dimension, tag, name) each; empty where the file has none or cannot be read.
+struct GmshPhysicalName {
+  int         dim;
+  long        tag;
+  std::string name;
+};
+std::vector<GmshPhysicalName> GmshPhysicalNames(const std::string &file);
+
 // Two vertices of `dm` closer than 1e-10 times the shortest edge at either of them are one point listed
 // twice: a mesh with a duplicated node is cut along it (a crack), which changes the problem without a
 // sign. Returns the problem (naming the nodes by their numbers in the file when `nodes` matches the

@@ -15,6 +15,7 @@
 #include "signorini/common.h"
 
 #include <limits>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -34,6 +35,9 @@ PetscErrorCode OptionEList(OptionItems items, const char *name, const char *help
 // Comma-separated values ("" gives an empty list); each integer in [min, max]. The caller checks the count.
 PetscErrorCode OptionIntList(OptionItems items, const char *name, const char *help, std::vector<PetscInt> &values, PetscInt min, PetscInt max, bool *set = nullptr);
 PetscErrorCode OptionRealList(OptionItems items, const char *name, const char *help, std::vector<PetscReal> &values, bool *set = nullptr);
+// OptionIntList whose entries may be names too: `names` maps a name to its numbers (all of them join the
+// list); `known` lists the names for the message on an unknown one.
+PetscErrorCode OptionNamedIntList(OptionItems items, const char *name, const char *help, std::vector<PetscInt> &values, const std::map<std::string, std::vector<PetscInt>> &names, const std::string &known, bool *set = nullptr);
 
 // Collective; call after every component has read its options and before any work. An option in the
 // database (command line, options files, PETSC_OPTIONS) that no reader read and that is not of a PETSc
