@@ -7,6 +7,7 @@
 #include "signorini/options.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <cstdlib>
 #include <map>
 #include <tuple>
@@ -41,15 +42,23 @@ static PetscErrorCode PartNames(MPI_Comm comm, std::map<std::string, std::vector
     for (int k = 0; k < (three ? 6 : 4); ++k) names[three ? sides3[k] : sides2[k]] = {k + 1};
     PetscFunctionReturn(0);
   }
-  std::string text; // "tag name" lines
+  std::string text; // "tag name" lines; "?" where the file cannot be opened (its reader says why, later)
   PetscCallMPI(MPI_Comm_rank(comm, &rank));
-  if (rank == 0)
+  if (rank == 0) {
+    std::FILE *fp = std::fopen(file, "r");
+    if (fp) std::fclose(fp);
+    else text = "?";
     for (const GmshPhysicalName &n : GmshPhysicalNames(file))
       if (n.dim == 1 || n.dim == 2) text += Format("%ld %s\n", n.tag, n.name.c_str());
+  }
   int length = (int)text.size();
   PetscCallMPI(MPI_Bcast(&length, 1, MPI_INT, 0, comm));
   text.resize(length);
   PetscCallMPI(MPI_Bcast(text.data(), length, MPI_CHAR, 0, comm));
+  if (text == "?") {
+    known = Format("the mesh file '%s' cannot be opened", file);
+    PetscFunctionReturn(0);
+  }
   std::string list;
   for (size_t pos = 0; pos < text.size();) {
     const size_t      end  = text.find('\n', pos), space = text.find(' ', pos);
