@@ -273,12 +273,20 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
   PetscCall(indicators_(m, eta2, row.eta, row.estimateSeconds));
   // The adaptive run proper ends after -adapt_steps, below -adapt_tol or at -adapt_max_dofs; the
   // reference steps follow it.
-  if (adaptEnd_ < 0 && (step_ >= adapt_.steps || row.eta < adapt_.tol || (adapt_.maxDofs > 0 && row.dofs >= adapt_.maxDofs))) adaptEnd_ = step_;
+  // reference steps follow it. An early end is said, so that fewer steps than asked for do not pass unseen.
+  if (adaptEnd_ < 0) {
+    const std::string at = Format("ended at step %d of -adapt_steps %d: ", (int)step_, (int)adapt_.steps);
+    if (step_ >= adapt_.steps) ended = "steps";
+    else if (row.eta < adapt_.tol) ended = "tol", endedText = at + Format("eta %.4e is below -adapt_tol %g", (double)row.eta, (double)adapt_.tol);
+    else if (adapt_.maxDofs > 0 && row.dofs >= adapt_.maxDofs) ended = "max_dofs", endedText = at + Format("the mesh has %d DOFs, -adapt_max_dofs %d", (int)row.dofs, (int)adapt_.maxDofs);
+    if (!ended.empty()) adaptEnd_ = step_;
+  }
   row.reference = adaptEnd_ >= 0 && step_ > adaptEnd_;
   stop_         = adaptEnd_ >= 0 && step_ >= adaptEnd_ + adapt_.referenceSteps;
   if (!stop_) {
     PetscCall(StageTimed(PetscObjectComm((PetscObject)mesh_), Stage::Adapt, row.markSeconds, [&] { return MarkDoerfler(comm, eta2, adapt_.theta, marked_, &row.marked); }));
     stop_ = row.marked == 0; // a zero estimate: nothing to refine
+    if (stop_ && adaptEnd_ < 0) ended = "zero_estimate", endedText = Format("ended at step %d of -adapt_steps %d: the estimate is zero on every cell, nothing to refine", (int)step_, (int)adapt_.steps);
   }
   rows.push_back(row);
   if (!stop_) {

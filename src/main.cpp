@@ -234,6 +234,8 @@ static PetscErrorCode Run(MPI_Comm comm)
     PetscCall(SolveMeshes(s.problem, strategy));
     fine = std::move(strategy.finest);
     report.adapt          = strategy.rows;
+    report.adaptEnded     = strategy.ended;
+    report.adaptEndedText = strategy.endedText;
     meshInfo.cells        = strategy.rows[strategy.finestStep].cells;
     meshInfo.cellsPerRank = strategy.cellsPerRank;
     if (!s.output.file.empty()) PetscCall(OutputBegin(fine.space, s.output, output));

@@ -109,6 +109,7 @@ PetscErrorCode ReportPrint(MPI_Comm comm, const Report &r)
   if (r.solve.linearSeconds >= 0) o << Format("  solve %.3f s, one linear CG + BoomerAMG solve of the same A, b %.3f s (%d iterations): ratio %.2f\n", r.solve.solveSeconds, r.solve.linearSeconds, (int)r.solve.linearKspIts, r.solve.solveSeconds / r.solve.linearSeconds);
   o << Format("  stationarity max|r| / max|load| on free DOFs %.3e, energy J(u_h) = %.12e\n", (double)r.solve.stationarity, (double)r.solve.energy);
   if (!r.adapt.empty()) o << AdaptTable(r.adapt);
+  if (!r.adaptEndedText.empty()) o << "  adaptive refinement " << r.adaptEndedText << "\n";
   if (r.hasExact) o << Format("  error vs exact: L2 %.6e, broken H1 seminorm %.6e, H1 %.6e, energy %.6e\n", (double)r.error.l2, (double)r.error.h1semi, (double)r.error.h1, (double)r.error.energy);
   if (r.estimate.computed) {
     const Estimate &e = r.estimate;
@@ -212,7 +213,7 @@ PetscErrorCode ReportWriteJSON(MPI_Comm comm, const Report &r, const std::string
       o << ", \"run_seconds\": " << Num(a.runSeconds) << ", \"setup_seconds\": " << Num(a.setupSeconds) << ", \"solve_seconds\": " << Num(a.solveSeconds) << ", \"estimate_seconds\": " << Num(a.estimateSeconds) << ", \"mark_seconds\": " << Num(a.markSeconds) << ", \"refine_seconds\": " << Num(a.refineSeconds);
       o << ", \"redistribute_seconds\": " << Num(a.redistributeSeconds) << ", \"transfer_seconds\": " << Num(a.transferSeconds) << "}";
     }
-    o << "\n  ],\n";
+    o << "\n  ],\n  \"adapt_ended\": \"" << r.adaptEnded << "\",\n";
   }
   if (r.hasExact) o << "  \"error\": {\"l2\": " << Num(r.error.l2) << ", \"h1_semi\": " << Num(r.error.h1semi) << ", \"h1\": " << Num(r.error.h1) << ", \"energy\": " << Num(r.error.energy) << "},\n";
   if (r.estimate.computed) o << "  \"estimate\": " << EstimateJSON(r.estimate, r.hasExact ? &r.error : nullptr) << ",\n";

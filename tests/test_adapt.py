@@ -11,7 +11,8 @@
   - the same partition and results bit for bit in a second run on 2 ranks with repartitioning;
   - the first mesh, built by uniform refinement, is solved by nested iteration over its levels, with the
     same adapted meshes as from u_D on it (-nested 0);
-  - -adapt_tol stops at the first step whose eta is below it; -output writes the last mesh;
+  - -adapt_tol stops at the first step whose eta is below it, -adapt_max_dofs at the first mesh that has as
+    many DOFs, and a zero estimate at once, each with a line that says so; -output writes the last mesh;
   - an option of the adaptive run (-adapt_tol, ...) without -adapt_steps is refused, not ignored;
   - bad input: one clear line each."""
 import math
@@ -170,8 +171,19 @@ for el in ["cr", "p1"]:
 
 # -adapt_tol: stop at the first step with eta below it.
 tol = math.sqrt(one["adapt"][2]["eta"] * one["adapt"][3]["eta"])
-_, _, _, s = run(base + ["-adapt_tol", repr(tol)])
+_, out, _, s = run(base + ["-adapt_tol", repr(tol)])
 c.check(len(s["adapt"]) == 4 and s["cells"] == one["adapt"][3]["cells"], "-adapt_tol %.3g stops after step 3 (%d rows)" % (tol, len(s["adapt"])))
+# An end before -adapt_steps is said (fewer steps than asked for do not pass unseen), and why; the summary
+# names the reason in every adaptive run.
+ended = [l for l in out.splitlines() if l.startswith("  adaptive refinement ended at step 3 of -adapt_steps")]
+c.check(s["adapt_ended"] == "tol" and len(ended) == 1 and "is below -adapt_tol" in ended[0], "-adapt_tol: the end said: %s, %s" % (s["adapt_ended"], ended))
+_, out, _, s = run(base + ["-adapt_max_dofs", str(one["adapt"][1]["dofs"])])
+ended = [l for l in out.splitlines() if l.startswith("  adaptive refinement ended at step 1 of -adapt_steps")]
+c.check(s["adapt_ended"] == "max_dofs" and len(s["adapt"]) == 2 and len(ended) == 1 and "-adapt_max_dofs" in ended[0], "-adapt_max_dofs: stops at step 1, said: %s, %s" % (s["adapt_ended"], ended))
+c.check(one["adapt_ended"] == "steps", "all steps done: adapt_ended %s" % one["adapt_ended"])
+_, out, _, s = run(scene("paper-5.1") + ["-box_faces", "8", "-adapt_steps", "2", "-f", "0", "-psi", "-1"])  # u = 0: eta 0
+ended = [l for l in out.splitlines() if "adaptive refinement ended at step 0" in l]
+c.check(s["adapt_ended"] == "zero_estimate" and len(s["adapt"]) == 1 and len(ended) == 1 and "nothing to refine" in ended[0], "a zero estimate: stops at step 0, said: %s, %s" % (s["adapt_ended"], ended))
 
 # -output: the last mesh.
 try:

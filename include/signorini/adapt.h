@@ -94,6 +94,9 @@ public:
   PetscInt              finestStep = 0;
   std::vector<AdaptRow> rows;         // one per mesh solved
   std::vector<PetscInt> cellsPerRank; // of finest's mesh
+  // Why the adaptive run ended: "steps" (all -adapt_steps done), "tol", "max_dofs" or "zero_estimate"
+  // (nothing to refine), and for an early end the sentence that says so.
+  std::string ended, endedText;
 
 private:
   PetscErrorCode Refine(); // the marked cells of mesh_, the solution carried to the new mesh_

@@ -23,6 +23,7 @@ struct Report {
   PetscReal   aspect = 0;        // the first mesh's largest cell aspect ratio, where it chose the preconditioner
   bool        chosenForAspect = false; // BoomerAMG alone because of stretched cells (no -vi_pc_type given)
   std::vector<AdaptRow> adapt; // adaptive refinement: one row per mesh (empty without)
+  std::string           adaptEnded, adaptEndedText; // AdaptiveRefinement::ended, endedText
   bool        hasExact = false;
   ErrorNorms  error;
   Estimate    estimate; // without the cell indicators; estimate.computed = false: none (-estimate none)
