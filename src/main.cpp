@@ -114,6 +114,7 @@ static PetscErrorCode WarnNotAppliedOptions(MPI_Comm comm, const Settings &s, bo
     PetscCall(WarnNotApplied(comm, {"-nested_levels", "-solve_to", "-solve_to_rtol", "-solve_to_fraction"}, s.nested.enabled ? "no nested iteration: the mesh has no coarser refinement levels" : "no nested iteration: -nested 0"));
   if (s.assembly.centroid) PetscCall(WarnNotApplied(comm, {"-load_quadrature_degree"}, "-load_quadrature centroid is the one-point rule"));
   if (!s.mesh.file.empty()) PetscCall(WarnNotApplied(comm, {"-box_faces", "-box_lower", "-box_upper", "-box_diagonal", "-box_coarsen"}, "the mesh is read from -mesh_file"));
+  if (s.study.levels > 0 && s.study.referenceRefine == 0) PetscCall(WarnNotApplied(comm, {"-reference_space"}, "the study has no reference: -reference_refine 0"));
   // Data of a boundary part the scene does not have (0, what the scene files give for every part, is no data)
   if (s.problem.contact.empty() && !s.problem.psi->IsZero()) PetscCall(WarnNotApplied(comm, {"-psi"}, "the scene has no contact part, -bc_contact"));
   if (s.problem.neumann.empty() && !s.problem.g->IsZero()) PetscCall(WarnNotApplied(comm, {"-g"}, "the scene has no Neumann part, -bc_neumann; boundary faces in no part have kappa du/dn = 0"));

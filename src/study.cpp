@@ -31,10 +31,17 @@ PetscErrorCode StudyOptionsFromCommandLine(MPI_Comm comm, const Problem &problem
   o.elements.clear();
   std::stringstream ss(elements);
   for (std::string item; std::getline(ss, item, ',');) {
-    if (item == "p1") o.elements.push_back(Element::P1);
-    else if (item == "cr") o.elements.push_back(Element::CR);
+    item = Trim(item);
+    std::transform(item.begin(), item.end(), item.begin(), [](unsigned char ch) { return (char)std::tolower(ch); });
+    Element e;
+    if (item == "p1") e = Element::P1;
+    else if (item == "cr") e = Element::CR;
     else SIGNORINI_INPUT_ERROR(comm, "option -study_spaces: unknown element '%s' (p1 or cr)", item.c_str());
+    // each element once: a second study of it would only repeat the first (and write the same files)
+    if (std::find(o.elements.begin(), o.elements.end(), e) != o.elements.end()) SIGNORINI_INPUT_ERROR(comm, "option -study_spaces: element %s is named twice", item.c_str());
+    o.elements.push_back(e);
   }
+  if (o.elements.empty()) SIGNORINI_INPUT_ERROR(comm, "option -study_spaces: no element to study (p1, cr, or p1,cr)");
   if (!o.file.empty()) PetscCall(FileClaim(comm, "-study_output", o.file));
   if (!o.profiles.empty())
     for (Element e : o.elements) { // the files the finest level writes (ConvergenceStudy::Row)

@@ -166,6 +166,8 @@ with tempfile.TemporaryDirectory() as inputs:
         ("study option without a study", ["-reference_refine", "1"], "option -reference_refine: applies to a convergence study only", False),
         ("study table file without a study", ["-study_output", never], "option -study_output: applies to a convergence study only", False),
         ("-output in a study", ["-study_levels", "2"], "option -output: a convergence study writes", False),
+        ("a study's element named twice", ["-study_levels", "2", "-study_spaces", "p1, cr,P1"], "option -study_spaces: element p1 is named twice", False),
+        ("a study of no element", ["-study_levels", "2", "-study_spaces", ""], "option -study_spaces: no element to study", False),
         ("no Dirichlet and no contact part (singular)", ["-bc_dirichlet", "", "-bc_contact", "", "-bc_neumann", "1,2,3,4"], "singular", False),
         # without a Dirichlet part a solution exists only for a load pushing u towards the obstacle (sum < 0)
         ("no Dirichlet part, load pushing u away from the obstacle", ["-bc_dirichlet", "", "-bc_neumann", "2,3,4", "-f", "1 + x"], "no solution exists", True),
@@ -232,6 +234,7 @@ with tempfile.TemporaryDirectory() as inputs:
                          "unknown boundary label", "expression does not parse", "unknown variable", "zero cell count",
                          "negative refine", "dim 4", "unknown space", "same part named twice",
                          "study option without a study", "study table file without a study", "-output in a study",
+                         "a study's element named twice", "a study of no element",
                          "no Dirichlet and no contact part (singular)", "a piece with neither a Dirichlet nor a contact face", "pieces touching at a vertex", "-dim 2 with a 3D mesh file", "unknown name of a box side",
                          "a name in a file without physical names", "exact gradient with 3 components in 2D",
                          "singular, and a missing mesh file", "bad expression, and a missing mesh file",

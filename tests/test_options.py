@@ -48,6 +48,8 @@ square = ["-mesh_file", os.path.join(ROOT, "tests", "data", "square.msh"), "-bc_
 w = warnings(square + ["-box_upper", "2"])
 c.check(len(w) == 3 and all("the mesh is read from -mesh_file" in l for l in w) and all(("option %s" % o) in "".join(w) for o in ["-box_faces 8", "-box_diagonal backslash", "-box_upper 2"]),
         "box options with -mesh_file: reported: %s" % w)
+w = warnings(["-study_levels", "2", "-reference_space", "p1"])
+c.check(len(w) == 1 and "option -reference_space p1 was not used (the study has no reference: -reference_refine 0)" in w[0], "-reference_space without a reference: reported: %s" % w)
 w = [l for l in run(scene("stiff-below-h2") + ["-mesh_file", os.path.join(ROOT, "petsc-options", "meshes", "split-bottom.msh"), "-refine", "1"])[1].splitlines() if l.startswith("signorini: warning: option")]
 c.check(not w, "stiff-below-h2 (mesh file, -dim 2 of its mesh): nothing reported: %s" % w)
 for args in [["-bc_contact", "", "-bc_neumann", "1,2,4"], ["-bc_neumann", "", "-bc_dirichlet", "2,3,4"]]:
