@@ -31,7 +31,7 @@ import subprocess
 import sys
 
 import launch
-from launch import ROOT
+from launch import ROOT, list_option
 
 STAGES = ["mesh", "distribute", "refine", "setup", "assemble", "solve"]
 SETUP = ["mesh", "distribute", "refine", "setup", "assemble"]
@@ -270,10 +270,10 @@ def main():
         ap.error("--repeat: %d is not a positive count" % args.repeat)
     if args.quick:
         args.n2, args.n3 = "64,128", "12,24"
+    dims = list_option(ap, "--dims", args.dims, [2, 3], int)
+    elements = list_option(ap, "--elements", args.elements, ["p1", "cr"])
+    sizes = {2: list_option(ap, "--n2", args.n2, convert=int), 3: list_option(ap, "--n3", args.n3, convert=int)}
     os.makedirs(args.out, exist_ok=True)
-    dims = [int(d) for d in args.dims.split(",")]
-    elements = args.elements.split(",")
-    sizes = {2: [int(n) for n in args.n2.split(",")], 3: [int(n) for n in args.n3.split(",")]}
     if not args.no_warm_memory:
         warm_memory()
     if args.peer:

@@ -20,6 +20,25 @@ MPIEXEC = os.environ.get("SIGNORINI_MPIEXEC", "mpirun")
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMPI_MCA_rmaps_base_oversubscribe="1")
 
 
+def list_option(ap, option, text, allowed=None, convert=str):
+    """The comma-separated values of a script's option, each converted and, where `allowed` is given, one of
+    them; none twice and at least one, or an argparse error naming the option (exit 2): a mistyped value
+    otherwise ran nothing and wrote an empty table over the last one."""
+    values = []
+    for item in (text or "").split(","):
+        item = item.strip()
+        try:
+            value = convert(item)
+        except ValueError:
+            ap.error("%s %s: '%s' is not a valid value" % (option, text, item))
+        if allowed is not None and value not in allowed:
+            ap.error("%s %s: '%s' is not one of %s" % (option, text, item, ", ".join(str(a) for a in allowed)))
+        if value in values:
+            ap.error("%s %s: '%s' is given twice" % (option, text, item))
+        values.append(value)
+    return values
+
+
 def scene(name):
     """The options of the scene petsc-options/NAME."""
     return ["-options_file", os.path.join(OPTIONS, name)]

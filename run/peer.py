@@ -21,7 +21,7 @@ import subprocess
 import sys
 
 import launch
-from launch import ROOT
+from launch import ROOT, list_option
 
 PYTHON = "/usr/bin/python3"  # Debian's: the one python3-dolfinx installs into
 SCRIPT = os.path.join(ROOT, "run", "peer_dolfinx.py")
@@ -113,7 +113,8 @@ def main(bench_args, extra):
     args = ap.parse_args(extra)
     n2 = args.peer_n2 or (128 if bench_args.quick else 1024)
     n3 = args.peer_n3 or (16 if bench_args.quick else 64)
-    dims = [int(d) for d in bench_args.dims.split(",")]
+    dims = list_option(ap, "--dims", bench_args.dims, [2, 3], int)
+    args.peer_elements = ",".join(list_option(ap, "--peer-elements", args.peer_elements, ["p1", "cr"]))
     repeat = bench_args.repeat if bench_args.repeat > 1 else 3
     os.makedirs(bench_args.out, exist_ok=True)
     ensure_dolfinx()

@@ -22,7 +22,7 @@ import sys
 
 import launch
 from bench import SETUP, mesh_args, save_png, warm_memory
-from launch import ROOT
+from launch import ROOT, list_option
 
 
 def mpiexec(args):
@@ -197,8 +197,9 @@ def main():
     ap.add_argument("--no-stream", action="store_true", help="do not measure the memory bandwidth of each rank count (signorini-stream)")
     ap.add_argument("--no-warm-memory", action="store_true", help="do not touch the free memory once before the runs (a virtual machine's first touch is slow; see run/bench.py)")
     args, extra = ap.parse_known_args()
+    args.kind = list_option(ap, "--kind", args.kind, ["strong", "weak"])
     if args.ranks:
-        args.ranks = [int(p) for p in args.ranks.split(",")]
+        args.ranks = list_option(ap, "--ranks", args.ranks, convert=int)
     else:
         args.ranks = [1]
         while args.ranks[-1] * 2 <= args.max_ranks:

@@ -763,6 +763,9 @@ def main():
               ("below-h2", lambda rep: below_h2(rep, args.full))]
     if args.finest or args.only == "finest":
         groups.append(("finest", finest))
+    if not any(args.only in name for name, _ in groups):  # a mistyped group ran nothing and wrote an empty table
+        names = [name for name, _ in groups] + ([] if any(name == "finest" for name, _ in groups) else ["finest"])
+        ap.error("--only %s: no group's name contains it (groups: %s)" % (args.only, ", ".join(names)))
     t0 = time.time()
     with tempfile.TemporaryDirectory(prefix="stability-") as tmp:
         rep = Report(Runner(args.ranks, tmp))

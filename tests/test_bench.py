@@ -2,7 +2,8 @@
 - one run per case: each row's times, VI / linear ratio and bytes per DOF are those of the run's JSON;
 - --repeat 3: three runs per case, each kept; each row holds the median of every time and of the three
   ratios and the largest peak memory, recomputed here from the three JSON files;
-- bench.csv and time-per-dof.png are written, no *.tmp file is left; --repeat 0 is a clear usage error;
+- bench.csv and time-per-dof.png are written, no *.tmp file is left; --repeat 0, an unknown element or
+  dimension, a repeated one, a size that is no number are clear usage errors before any run;
 - --estimate: each estimate / solve ratio is that of its run's Estimate and Solve stages, and each adaptive
   step's overhead / solve is that of the run's "adapt" row (estimate + mark + refine + redistribute + transfer);
 - --error --quick: each error / solve ratio is that of its run's Error and Solve stages;
@@ -129,4 +130,9 @@ with tempfile.TemporaryDirectory() as tmp:
 with tempfile.TemporaryDirectory() as tmp:
     p = bench(tmp, "--repeat", "0")
     c.check(p.returncode == 2 and "--repeat: 0 is not a positive count" in p.stderr, "--repeat 0: exit %d, %s" % (p.returncode, p.stderr.strip().splitlines()[-1:]))
+    # a mistyped list value ran nothing, or failed half-way with a traceback, and wrote a table: now refused first
+    for args, message in [(["--elements", "q1"], "--elements q1: 'q1' is not one of p1, cr"), (["--dims", "4"], "--dims 4: '4' is not one of 2, 3"),
+                          (["--elements", "cr,cr"], "'cr' is given twice"), (["--n2", "32,x"], "--n2 32,x: 'x' is not a valid value")]:
+        p = bench(tmp, *args)
+        c.check(p.returncode == 2 and message in p.stderr and not os.listdir(tmp), "%s: exit %d, %s, nothing written" % (" ".join(args), p.returncode, p.stderr.strip().splitlines()[-1:]))
 c.done()

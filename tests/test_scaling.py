@@ -3,7 +3,8 @@
 - the strong runs solve one discrete problem, so their energies agree (1 and 2 ranks, to solver tolerance);
   the weak runs have twice the DOFs on 2 ranks, less those of the side the two unit squares share;
 - the efficiencies in the CSV are the ones defined by the times in the same CSV (strong T1 / (2 T2), weak
-  T1 / T2), and the bandwidth ceiling is (BW2 / 2) / BW1 from the measured bandwidths, which are positive."""
+  T1 / T2), and the bandwidth ceiling is (BW2 / 2) / BW1 from the measured bandwidths, which are positive;
+- an unknown --kind is a usage error before any run, and nothing is written."""
 import csv
 import os
 import subprocess
@@ -40,4 +41,9 @@ with tempfile.TemporaryDirectory() as tmp:
         ceiling = (bw2 / 2) / bw1
         c.check(bw1 > 0 and bw2 > 0 and abs(float(b["eff_ceiling"]) - ceiling) <= 1e-9 * ceiling and float(a["eff_ceiling"]) == 1.0,
                 "%s: bandwidth %.2f / %.2f GB/s, ceiling %s = %.4f" % (a["kind"], bw1, bw2, b["eff_ceiling"], ceiling))
+# A mistyped kind ran nothing and wrote an empty table and plot over the last ones: now refused first.
+with tempfile.TemporaryDirectory() as tmp:
+    p = subprocess.run([sys.executable, os.path.join(ROOT, "run", "scaling.py"), "--kind", "strog", "--ranks", "1", "--no-warm-memory", "--out", tmp], capture_output=True, text=True, env=ENV)
+    c.check(p.returncode == 2 and "--kind strog: 'strog' is not one of strong, weak" in p.stderr and not os.listdir(tmp),
+            "--kind strog: exit %d, %s, nothing written" % (p.returncode, p.stderr.strip().splitlines()[-1:]))
 c.done()

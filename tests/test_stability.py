@@ -9,7 +9,8 @@ checked against the report's own uniform rows rather than against fixed numbers:
     triangle inequality, with eta bounding each true error), the adaptive error (against the adaptive run
     carried further) falls like DOFs^s, s <= -0.45, and a positive time ratio (its size is reported,
     not tested: timing is never a pass/fail test), with the time interpolated on the adaptive error-time
-    curve no later than the step it is interpolated towards (an invariant of the interpolation)."""
+    curve no later than the step it is interpolated towards (an invariant of the interpolation);
+  * a group name that matches none (--only below-h3) is refused before any run, the earlier table kept."""
 import csv
 import os
 import subprocess
@@ -48,4 +49,12 @@ with tempfile.TemporaryDirectory() as tmp:
             c.check(0 < float(t["curve_ratio"]) <= float(t["time_ratio"]), "%s time row: curve ratio %s in (0, time ratio %s]" % (element, t["curve_ratio"], t["time_ratio"]))
         c.check(t["slope_error"] != "" and float(t["slope_error"]) <= -0.45, "%s time row: adaptive error ~ DOFs^%s, <= -0.45" % (element, t["slope_error"]))
         c.check(t["status"] in ("ok", "above target"), "%s time row: status %s (%s)" % (element, t["status"], t["notes"]))
+
+# A group that does not exist is refused before any run, and the table of an earlier run is left as it was.
+with tempfile.TemporaryDirectory() as tmp:
+    path = os.path.join(tmp, "stability.csv")
+    open(path, "w").write("earlier table\n")
+    p = subprocess.run([sys.executable, os.path.join(ROOT, "run", "stability.py"), "--only", "below-h3", "--csv", path], capture_output=True, text=True, env=ENV)
+    c.check(p.returncode == 2 and "--only below-h3: no group's name contains it" in p.stderr and open(path).read() == "earlier table\n",
+            "run/stability --only below-h3: exit %d, %s, the earlier table kept" % (p.returncode, p.stderr.strip().splitlines()[-1] if p.stderr.strip() else "nothing on stderr"))
 c.done()
