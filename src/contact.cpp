@@ -503,6 +503,19 @@ static PetscErrorCode SolveVI(const Space &space, const Problem &problem, const 
     rtol = 0;
   }
   PetscCall(SNESSetTolerances(snes, atol, rtol, stol, maxit, maxf));
+  if (started) {
+    // SNES's divergence test is relative to the start's own residual, which a good start (the start in
+    // full contact may all but solve it) makes tiny: the first step that changes the active set then
+    // "diverged" (DIVERGED_DTOL). Relative to the start from u_D, as the target is, unless the user set it.
+    PetscBool set;
+    PetscReal divtol, fs;
+    PetscCall(PetscOptionsHasName(NULL, NULL, "-snes_divergence_tolerance", &set));
+    PetscCall(SNESGetDivergenceTolerance(snes, &divtol));
+    PetscCall(MatMult(sys.A, u, F));
+    PetscCall(VecAXPY(F, -1.0, sys.b));
+    PetscCall(SNESVIComputeInactiveSetFnorm(snes, F, u, &fs));
+    if (!set && divtol > 0 && fs < f0) PetscCall(SNESSetDivergenceTolerance(snes, divtol * f0 / std::max(fs, PETSC_SMALL * f0)));
+  }
   // rsls: the energies need F = A u - b and CG on blocks of A, the reduced-space solver's
   const bool energyTest = rsls && (opts.energyError > 0 || opts.startError > 0);
   if (energyTest) PetscCall(EnergyStopInstall(snes, sys, opts, scale, energyStop));
@@ -871,7 +884,9 @@ PetscErrorCode Solve(const Space &space, const Problem &problem, const System &s
   if (!opts.initialGuess) PetscCall(VecCopy(sys.uD, u));
   PetscCall(ProjectOntoConstraints(sys, space.dirichletOwned, lower, u));
   PetscInt   startIts = 0;
-  const bool inContact = r.vi && !opts.initialGuess && (space.numDirichletGlobal == 0 || problem.coverage.contactOnly > 0);
+  // (from a guess too: one carried from a coarser mesh, itself stopped early, may leave no contact DOF of
+  // such a body active, with the same singular first step)
+  const bool inContact = r.vi && (space.numDirichletGlobal == 0 || problem.coverage.contactOnly > 0);
   if (inContact) PetscCall(StartInFullContact(space, sys, lower, u, &startIts));
   if (r.vi) {
     PetscCall(SolveVI(space, problem, sys, lower, u, r, opts, scale, opts.initialGuess || inContact));
