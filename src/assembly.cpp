@@ -372,19 +372,20 @@ static PetscErrorCode CheckLoadTowardsObstacle(const Space &space, const Problem
   // Dirichlet DOF.
   std::vector<PetscReal> sums(3 * count, 0.0);
   PetscInt               rstart, n;
+  const PetscInt        *gidx;
   PetscCall(VecGetOwnershipRange(load, &rstart, NULL));
   PetscCall(VecGetLocalSize(load, &n));
   PetscCall(VecGetArrayRead(load, &l));
+  PetscCall(ISLocalToGlobalMappingGetIndices(space.ltog, &gidx));
   for (PetscInt i = 0; i < space.numLocal; ++i) {
-    const PetscInt k = piece[i];
+    const PetscInt k = piece[i], g = gidx[i];
     if (k < 0) continue;
     if (space.kindLocal[i] == kDirichlet) sums[3 * k + 2] = 1;
-    PetscInt g;
-    PetscCall(ISLocalToGlobalMappingApply(space.ltog, 1, &i, &g));
     if (g < rstart || g >= rstart + n) continue; // a copy of another rank's DOF
     sums[3 * k] += PetscRealPart(l[g - rstart]);
     sums[3 * k + 1] += PetscAbsScalar(l[g - rstart]);
   }
+  PetscCall(ISLocalToGlobalMappingRestoreIndices(space.ltog, &gidx));
   PetscCall(VecRestoreArrayRead(load, &l));
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, sums.data(), (PetscMPIInt)sums.size(), MPIU_REAL, MPI_SUM, comm));
   std::vector<PetscInt> bad;

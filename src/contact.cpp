@@ -824,8 +824,7 @@ static PetscErrorCode StartInFullContact(const Space &space, const System &sys, 
   PetscCall(VecDuplicate(sys.b, &b));
   PetscCall(VecDuplicate(u, &x));
   PetscCall(VecCopy(sys.b, b));
-  PetscCall(VecCopy(u, x)); // u_D on Gamma_D and, projected, psi on Gamma_C where psi lies above u_D
-  PetscCall(VecPointwiseMax(x, x, lower));
+  PetscCall(VecCopy(u, x)); // the start so far (u_D, or a guess): u_D on Gamma_D, and the KSP's first iterate
   PetscCall(VecGetOwnershipRange(u, &rstart, NULL));
   std::vector<PetscInt> rows(space.contactOwned);
   for (PetscInt &i : rows) i += rstart;

@@ -213,9 +213,9 @@ PetscErrorCode CheckExactSolution(DM dm, const Problem &p, const std::vector<cha
     }
   }
   // Values in blocks (the stencils of a block at once), then the scales over all ranks, then the misses.
-  const size_t            kBlock = 1024;
-  std::vector<Values>     blocks;
-  Scales                  sc;
+  const size_t        kBlock = 1024;
+  std::vector<Values> blocks;
+  Scales              sc;
   for (size_t b = 0; b < samples.size(); b += kBlock) {
     const std::vector<Sample> part(samples.begin() + b, samples.begin() + std::min(samples.size(), b + kBlock));
     blocks.emplace_back();

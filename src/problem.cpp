@@ -263,7 +263,7 @@ static PetscErrorCode CheckPieces(DM dm, PetscInt dim, const std::vector<char> &
   for (PetscInt c = 0; c < cEnd - cStart; ++c) cellPiece[c] = component[cones[c * (dim + 1)]];
   std::vector<std::array<PetscReal, 3>> lowest;
   PetscCall(LowestPoints(comm, dim, cEnd - cStart, cellPiece, count, [&](PetscInt c, PetscReal *x) { (void)DMPlexComputeCellGeometryFVM(dm, cStart + c, NULL, x, NULL); }, lowest));
-  PetscInt                floating = 0, first = -1;
+  PetscInt floating = 0, first = -1;
   for (PetscInt k = 0; k < count; ++k) {
     if ((has[k] & 3) == 2) ++b.contactOnly;
     if ((has[k] & 3) != 0) continue;
