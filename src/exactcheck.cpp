@@ -148,11 +148,6 @@ PetscErrorCode CheckExactSolution(DM dm, const Problem &p, const std::vector<cha
   PetscInt local = cEnd - cStart;
   PetscCallMPI(MPI_Allreduce(&local, &cells, 1, MPIU_INT, MPI_SUM, comm));
   const bool few = cells <= 10000;
-  const auto setOf = [&](PetscInt c) {
-    PetscInt value = -1;
-    if (cellSets) (void)DMLabelGetValue(cellSets, c, &value);
-    return value;
-  };
   PetscReal lo[3] = {PETSC_MAX_REAL, PETSC_MAX_REAL, PETSC_MAX_REAL}, hi[3] = {-PETSC_MAX_REAL, -PETSC_MAX_REAL, -PETSC_MAX_REAL};
   for (size_t i = 0; i < X.size(); ++i) lo[i % dim] = std::min(lo[i % dim], X[i]), hi[i % dim] = std::max(hi[i % dim], X[i]);
   const auto centroidOf = [&](const PetscInt *verts, PetscInt nv, PetscReal *c) {
@@ -176,8 +171,8 @@ PetscErrorCode CheckExactSolution(DM dm, const Problem &p, const std::vector<cha
     PetscCall(SimplexVertices(dm, c, dim, verts));
     Sample s;
     centroidOf(verts, dim + 1, s.x);
-    s.h   = 1e-3 * diameterOf(verts, dim + 1);
-    s.set = setOf(c);
+    s.h = 1e-3 * diameterOf(verts, dim + 1);
+    if (cellSets) PetscCall(DMLabelGetValue(cellSets, c, &s.set));
     samples.push_back(s);
     for (PetscInt k = 0; k <= dim && few; ++k) {
       Sample m = s;
@@ -202,7 +197,7 @@ PetscErrorCode CheckExactSolution(DM dm, const Problem &p, const std::vector<cha
     PetscCall(DMPlexComputeCellGeometryFVM(dm, f, &area, NULL, normal));
     for (PetscInt d = 0; d < dim; ++d) n2 += PetscSqr(normal[d]), side += normal[d] * (s.x[d] - cc[d]);
     for (PetscInt d = 0; d < dim; ++d) s.n[d] = (side < 0 ? -1 : 1) * normal[d] / std::sqrt(n2);
-    s.set  = setOf(supp[0]);
+    if (cellSets) PetscCall(DMLabelGetValue(cellSets, supp[0], &s.set));
     s.kind = kind[f - pStart];
     s.h    = 1e-3 * diameterOf(cverts, dim + 1);
     samples.push_back(s);

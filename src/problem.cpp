@@ -262,7 +262,9 @@ static PetscErrorCode CheckPieces(DM dm, PetscInt dim, const std::vector<char> &
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, has.data(), (PetscMPIInt)count, MPIU_INT, MPI_BOR, comm));
   for (PetscInt c = 0; c < cEnd - cStart; ++c) cellPiece[c] = component[cones[c * (dim + 1)]];
   std::vector<std::array<PetscReal, 3>> lowest;
-  PetscCall(LowestPoints(comm, dim, cEnd - cStart, cellPiece, count, [&](PetscInt c, PetscReal *x) { (void)DMPlexComputeCellGeometryFVM(dm, cStart + c, NULL, x, NULL); }, lowest));
+  std::vector<std::array<PetscReal, 3>> centroid(cEnd - cStart);
+  for (PetscInt c = cStart; c < cEnd; ++c) PetscCall(DMPlexComputeCellGeometryFVM(dm, c, NULL, centroid[c - cStart].data(), NULL));
+  PetscCall(LowestPoints(comm, dim, cEnd - cStart, cellPiece, count, [&](PetscInt c, PetscReal *x) { std::copy(centroid[c].begin(), centroid[c].end(), x); }, lowest));
   PetscInt floating = 0, first = -1;
   for (PetscInt k = 0; k < count; ++k) {
     if ((has[k] & 3) == 2) ++b.contactOnly;
