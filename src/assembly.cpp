@@ -453,7 +453,7 @@ PetscErrorCode AssembleSystem(const Space &space, const Problem &problem, const 
   PetscCall(VecSet(sys.load, 0));
   PetscCall(DMLocalToGlobal(space.dm, loc, ADD_VALUES, sys.load));
   PetscCall(MatAssemblyEnd(sys.A, MAT_FINAL_ASSEMBLY));
-  if (problem.HasContact() && (space.numDirichletGlobal == 0 || problem.coverage.contactOnly > 0)) PetscCall(CheckLoadTowardsObstacle(space, problem, sys.load));
+  if (problem.HasContact() && HeldByContactAlone(space, problem)) PetscCall(CheckLoadTowardsObstacle(space, problem, sys.load));
 
   // Dirichlet values: every rank evaluates u_D at its own copies of shared DOFs, so the values agree.
   PetscCall(VecSet(loc, 0));

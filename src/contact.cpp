@@ -278,21 +278,30 @@ PetscErrorCode ProjectOntoConstraints(const System &sys, const std::vector<Petsc
   PetscFunctionReturn(0);
 }
 
-// The residual norm the solve from u_D starts with (SNESVI's norm of F = A u - b on the inactive set, at
-// u_D projected onto the bounds). Its rtol is relative to this; a solve from a better initial guess stops
-// at the same absolute residual, so the guess saves work without changing the discrete solution.
+// SNESVI's norm of F = A u - b on the inactive set at u.
+static PetscErrorCode InactiveSetNorm(SNES snes, const System &sys, Vec u, PetscReal *fnorm)
+{
+  Vec F;
+  PetscFunctionBeginUser;
+  PetscCall(VecDuplicate(u, &F));
+  PetscCall(MatMult(sys.A, u, F));
+  PetscCall(VecAXPY(F, -1.0, sys.b));
+  PetscCall(SNESVIComputeInactiveSetFnorm(snes, F, u, fnorm));
+  PetscCall(VecDestroy(&F));
+  PetscFunctionReturn(0);
+}
+
+// The residual norm the solve from u_D starts with (InactiveSetNorm at u_D projected onto the bounds). Its
+// rtol is relative to this; a solve from a better initial guess stops at the same absolute residual, so the
+// guess saves work without changing the discrete solution.
 static PetscErrorCode StraightStartNorm(SNES snes, const System &sys, Vec lower, PetscReal *fnorm)
 {
-  Vec u0, F0;
+  Vec u0;
   PetscFunctionBeginUser;
   PetscCall(VecDuplicate(sys.uD, &u0));
-  PetscCall(VecDuplicate(sys.uD, &F0));
   PetscCall(VecPointwiseMax(u0, sys.uD, lower));
-  PetscCall(MatMult(sys.A, u0, F0));
-  PetscCall(VecAXPY(F0, -1.0, sys.b));
-  PetscCall(SNESVIComputeInactiveSetFnorm(snes, F0, u0, fnorm));
+  PetscCall(InactiveSetNorm(snes, sys, u0, fnorm));
   PetscCall(VecDestroy(&u0));
-  PetscCall(VecDestroy(&F0));
   PetscFunctionReturn(0);
 }
 
@@ -511,9 +520,7 @@ static PetscErrorCode SolveVI(const Space &space, const Problem &problem, const 
     PetscReal divtol, fs;
     PetscCall(PetscOptionsHasName(NULL, NULL, "-snes_divergence_tolerance", &set));
     PetscCall(SNESGetDivergenceTolerance(snes, &divtol));
-    PetscCall(MatMult(sys.A, u, F));
-    PetscCall(VecAXPY(F, -1.0, sys.b));
-    PetscCall(SNESVIComputeInactiveSetFnorm(snes, F, u, &fs));
+    PetscCall(InactiveSetNorm(snes, sys, u, &fs));
     if (!set && divtol > 0 && fs < f0) PetscCall(SNESSetDivergenceTolerance(snes, divtol * f0 / std::max(fs, PETSC_SMALL * f0)));
   }
   // rsls: the energies need F = A u - b and CG on blocks of A, the reduced-space solver's
@@ -885,7 +892,7 @@ PetscErrorCode Solve(const Space &space, const Problem &problem, const System &s
   PetscInt   startIts = 0;
   // (from a guess too: one carried from a coarser mesh, itself stopped early, may leave no contact DOF of
   // such a body active, with the same singular first step)
-  const bool inContact = r.vi && (space.numDirichletGlobal == 0 || problem.coverage.contactOnly > 0);
+  const bool inContact = r.vi && HeldByContactAlone(space, problem);
   if (inContact) PetscCall(StartInFullContact(space, sys, lower, u, &startIts));
   if (r.vi) {
     PetscCall(SolveVI(space, problem, sys, lower, u, r, opts, scale, opts.initialGuess || inContact));

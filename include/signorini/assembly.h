@@ -55,6 +55,9 @@ struct System {
 
 // Pushes the Setup (matrix creation) and Assemble stages.
 PetscErrorCode AssembleSystem(const Space &space, const Problem &problem, const AssemblyOptions &opts, System &sys);
+// Whether some piece of the domain has no Dirichlet DOF (the whole domain, or a piece with contact faces
+// only, CoarseFindings): its load must push it towards the obstacle, and its solve starts in full contact.
+inline bool HeldByContactAlone(const Space &space, const Problem &problem) { return space.numDirichletGlobal == 0 || problem.coverage.contactOnly > 0; }
 PetscErrorCode SystemDestroy(System &sys);
 // J(u) = 1/2 a_h(u, u) - chi(u), computed cell by cell from the unreduced element matrices.
 PetscErrorCode DiscreteEnergy(const Space &space, const System &sys, Vec u, PetscReal *J);
