@@ -30,28 +30,32 @@ constexpr PetscReal kSnesRtol = 1e-9, kKspRtol = 1e-10, kZeroTolerance = 1e-14;
 struct ResidualContext {
   Mat  A;
   Vec  b;
-  bool refresh = false; // J is a copy of A that the solver overwrites (SSLS)
+  bool refresh  = false;   // J is a copy of A that the solver overwrites (SSLS)
+  Vec  rowScale = nullptr; // SSLS: 1 / diag(A), see AdaptToSNESType
 };
 
-// F(u) = A u - b: the problem is linear, only the bounds make it a complementarity problem.
+// F(u) = A u - b (each row divided by its diagonal entry where rowScale is set): the problem is linear,
+// only the bounds make it a complementarity problem.
 PetscErrorCode Residual(SNES, Vec u, Vec F, void *ctx)
 {
   auto *c = static_cast<ResidualContext *>(ctx);
   PetscFunctionBeginUser;
   PetscCall(MatMult(c->A, u, F));
   PetscCall(VecAXPY(F, -1.0, c->b));
+  if (c->rowScale) PetscCall(VecPointwiseMult(F, F, c->rowScale));
   PetscFunctionReturn(0);
 }
 
 // A is assembled once. The reduced-space solver (RSLS) only extracts the inactive-set block from it, so
 // J acts as A (A itself, or the shell of AmgReuseJacobian) and nothing is done here. The semismooth
-// solver (SSLS) overwrites J with its own Jacobian D_a + D_b A, so for it J is a copy of A refreshed
-// before every step (F = A u - b must keep the original A).
+// solver (SSLS) overwrites J with its own Jacobian D_a + D_b J, so for it J is a copy of A (its rows scaled
+// as F's) refreshed before every step (F must keep the original A).
 PetscErrorCode ConstantJacobian(SNES, Vec, Mat J, Mat, void *ctx)
 {
   auto *c = static_cast<ResidualContext *>(ctx);
   PetscFunctionBeginUser;
   if (c->refresh) PetscCall(MatCopy(c->A, J, SAME_NONZERO_PATTERN));
+  if (c->refresh && c->rowScale) PetscCall(MatDiagonalScale(J, c->rowScale, NULL));
   PetscFunctionReturn(0);
 }
 
@@ -278,14 +282,13 @@ PetscErrorCode ProjectOntoConstraints(const System &sys, const std::vector<Petsc
   PetscFunctionReturn(0);
 }
 
-// SNESVI's norm of F = A u - b on the inactive set at u.
-static PetscErrorCode InactiveSetNorm(SNES snes, const System &sys, Vec u, PetscReal *fnorm)
+// SNESVI's norm of its function F (Residual) on the inactive set at u.
+static PetscErrorCode InactiveSetNorm(SNES snes, ResidualContext &ctx, Vec u, PetscReal *fnorm)
 {
   Vec F;
   PetscFunctionBeginUser;
   PetscCall(VecDuplicate(u, &F));
-  PetscCall(MatMult(sys.A, u, F));
-  PetscCall(VecAXPY(F, -1.0, sys.b));
+  PetscCall(Residual(snes, u, F, &ctx));
   PetscCall(SNESVIComputeInactiveSetFnorm(snes, F, u, fnorm));
   PetscCall(VecDestroy(&F));
   PetscFunctionReturn(0);
@@ -294,13 +297,13 @@ static PetscErrorCode InactiveSetNorm(SNES snes, const System &sys, Vec u, Petsc
 // The residual norm the solve from u_D starts with (InactiveSetNorm at u_D projected onto the bounds). Its
 // rtol is relative to this; a solve from a better initial guess stops at the same absolute residual, so the
 // guess saves work without changing the discrete solution.
-static PetscErrorCode StraightStartNorm(SNES snes, const System &sys, Vec lower, PetscReal *fnorm)
+static PetscErrorCode StraightStartNorm(SNES snes, const System &sys, ResidualContext &ctx, Vec lower, PetscReal *fnorm)
 {
   Vec u0;
   PetscFunctionBeginUser;
   PetscCall(VecDuplicate(sys.uD, &u0));
   PetscCall(VecPointwiseMax(u0, sys.uD, lower));
-  PetscCall(InactiveSetNorm(snes, sys, u0, fnorm));
+  PetscCall(InactiveSetNorm(snes, ctx, u0, fnorm));
   PetscCall(VecDestroy(&u0));
   PetscFunctionReturn(0);
 }
@@ -351,6 +354,17 @@ static PetscErrorCode AdaptToSNESType(SNES snes, const System &sys, ResidualCont
   }
   PetscCall(MatDuplicate(sys.A, MAT_COPY_VALUES, J));
   ctx.refresh = true;
+  // The semismooth function Phi(u - psi, F) = (u - psi) + F - sqrt((u - psi)^2 + F^2) is solved with PETSc
+  // 3.18's derivative of Phi, which takes 1/2 for both arguments wherever both are below 1e-6 in absolute
+  // value, a threshold that assumes u - psi and F of one size. Scaled by the largest diagonal entry
+  // (datascale.h), the rows of a soft material beside a stiff one carry F of 1/K of their size: at their
+  // active contact DOFs (u = psi, F a small reaction) that derivative mixed the row into the step, and the
+  // solve crawled (stiff-layers-across, K = 1e2 and 1e6: DIVERGED_MAX_IT after 200 Newton steps; K = 1: 63
+  // steps). Each row divided by its own diagonal entry makes F a displacement, of the size of u - psi in
+  // every material; the solution does not change (F >= 0 and (u - psi) F = 0 hold row by row).
+  PetscCall(MatCreateVecs(sys.A, &ctx.rowScale, NULL));
+  PetscCall(MatGetDiagonal(sys.A, ctx.rowScale));
+  PetscCall(VecReciprocal(ctx.rowScale));
   PetscCall(SNESSetJacobian(snes, *J, *J, ConstantJacobian, &ctx));
   if (shell) {
     PetscCall(PCSetType(pc, PCHYPRE));
@@ -500,7 +514,7 @@ static PetscErrorCode SolveVI(const Space &space, const Problem &problem, const 
   PetscCall(SNESGetTolerances(snes, &atol, &rtol, &stol, &maxit, &maxf));
   // The residual the solve has to reach: rtol relative to the start from u_D, whatever the start.
   PetscReal f0;
-  PetscCall(StraightStartNorm(snes, sys, lower, &f0));
+  PetscCall(StraightStartNorm(snes, sys, ctx, lower, &f0));
   const PetscReal target = PetscMax(atol, rtol * f0), rtolAsked = rtol, atolAsked = atol;
   r.defaultTarget        = kSnesRtol * f0;
   PetscCall(LoosenedStoppingTest(snes, atol, rtol, r));
@@ -520,14 +534,15 @@ static PetscErrorCode SolveVI(const Space &space, const Problem &problem, const 
     PetscReal divtol, fs;
     PetscCall(PetscOptionsHasName(NULL, NULL, "-snes_divergence_tolerance", &set));
     PetscCall(SNESGetDivergenceTolerance(snes, &divtol));
-    PetscCall(InactiveSetNorm(snes, sys, u, &fs));
+    PetscCall(InactiveSetNorm(snes, ctx, u, &fs));
     if (!set && divtol > 0 && fs < f0) PetscCall(SNESSetDivergenceTolerance(snes, divtol * f0 / std::max(fs, PETSC_SMALL * f0)));
   }
   // rsls: the energies need F = A u - b and CG on blocks of A, the reduced-space solver's
   const bool energyTest = rsls && (opts.energyError > 0 || opts.startError > 0);
   if (energyTest) PetscCall(EnergyStopInstall(snes, sys, opts, scale, energyStop));
   // The full test, as the defaults or tighter: it ends when the solve's own checks pass (kktstop.h).
-  if (rsls && !energyTest && r.loosened.empty()) PetscCall(KKTStopInstall(snes, space, problem, sys, lower, std::ldexp(1.0, -(int)(scale.u + scale.rows)), opts.kktTolerance, kktStop));
+  if (!energyTest && r.loosened.empty()) PetscCall(KKTStopInstall(snes, space, problem, sys, lower, std::ldexp(1.0, -(int)(scale.u + scale.rows)), opts.kktTolerance, kktStop));
+  kktStop.rowScale = ctx.rowScale;
   // At the floor with the default tolerances (stiff rows: kappa jumps, stretched cells) the active set has
   // settled and every further step would only repeat the last: that is the solution, and the KKT checks
   // after the solve are its test. A tolerance the user tightened below the floor is the user's to loosen.
@@ -554,6 +569,13 @@ static PetscErrorCode SolveVI(const Space &space, const Problem &problem, const 
   PetscCall(SNESGetFunctionNorm(snes, &r.residual));
   PetscCall(SNESGetIterationNumber(snes, &r.newtonIts));
   PetscCall(SNESGetLinearSolveIterations(snes, &r.kspIts));
+  if (ctx.rowScale) { // the solve saw its rows scaled (AdaptToSNESType); what it reports is of A u - b
+    ResidualContext rows{sys.A, sys.b};
+    PetscReal       f0Rows;
+    PetscCall(InactiveSetNorm(snes, rows, u, &r.residual));
+    PetscCall(StraightStartNorm(snes, sys, rows, lower, &f0Rows));
+    r.defaultTarget = kSnesRtol * f0Rows;
+  }
   r.reason    = energyStop.stopped ? "CONVERGED_ENERGY_ERROR" : SNESConvergedReasons[reason];
   r.stoppedBy = !energyStop.stopped ? "full" : opts.energyError > 0 ? "energy_error" : "start_error";
   PetscCall(energyStop.Destroy());
@@ -562,6 +584,7 @@ static PetscErrorCode SolveVI(const Space &space, const Problem &problem, const 
   PetscCall(stall.Destroy());
   PetscCall(kktStop.Destroy());
   PetscCall(MatDestroy(&J));
+  PetscCall(VecDestroy(&ctx.rowScale));
   PetscCall(VecDestroy(&upper));
   PetscCall(VecDestroy(&F));
   if (stall.stopped && stall.accept) {

@@ -8,6 +8,7 @@ PetscErrorCode KKTStop::Destroy()
 {
   PetscFunctionBeginUser;
   PetscCall(VecDestroy(&measure));
+  PetscCall(VecDestroy(&residual));
   PetscCall(wrap.Destroy());
   PetscFunctionReturn(0);
 }
@@ -28,6 +29,11 @@ static PetscErrorCode KKTTest(SNES snes, PetscInt it, PetscReal xnorm, PetscReal
   if (!k->measure) {
     PetscCall(VecDuplicate(x, &k->measure));
     PetscCall(ContactMeasure(*k->space, *k->problem, k->measure));
+  }
+  if (k->rowScale) {
+    if (!k->residual) PetscCall(VecDuplicate(F, &k->residual));
+    PetscCall(VecPointwiseDivide(k->residual, F, k->rowScale));
+    F = k->residual;
   }
   SolveResult checks;
   PetscCall(MeasureKKTFromResidual(*k->space, *k->sys, x, F, k->loadFactor, k->lower, k->measure, checks));

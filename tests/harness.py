@@ -18,6 +18,20 @@ def run(args, ranks=1, check=True):
     return r.returncode, r.stdout, r.stderr, r.summary
 
 
+def scene_with(name, token, value, directory):
+    """The options of the scene petsc-options/NAME with a literal parameter of its option lines (a contrast
+    1e6, a load factor 1e10) replaced by value, as a file written in directory."""
+    import tempfile
+    args = scene(name)
+    with open(args[1]) as f:
+        text = f.read()
+    assert token in text, "%s does not contain %s" % (name, token)
+    fd, path = tempfile.mkstemp(prefix=name + "-", dir=directory)
+    with os.fdopen(fd, "w") as f:
+        f.write("\n".join(l if l.startswith("#") else l.replace(token, value) for l in text.splitlines()) + "\n")
+    return ["-options_file", path]
+
+
 def rel(a, b):
     """Relative difference of a and b."""
     return abs(a - b) / max(abs(a), abs(b), 1e-300)

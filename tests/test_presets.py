@@ -2,11 +2,13 @@
 problem as the built-in defaults: the same energy J(u_h) to 1e-9 relative and the same active set, with
 the discrete KKT conditions to solver tolerance, for P1 and CR in 2D and 3D, on 1 and 2 ranks.
 The semismooth case guards a bug that gave a wrong solution with a clean KKT report: SSLS overwrites its
-Jacobian matrix with D_a + D_b A, which was the system matrix itself. -pc_type gamg, which PETSc 3.18's
+Jacobian matrix with D_a + D_b A, which was the system matrix itself; and it solves a kappa jump of 1e2 and 1e6
+across Gamma_C (stiff-layers-across) to the default solver's energy and active set. -pc_type gamg, which PETSc 3.18's
 reduced-space solver cannot use, stops with a one-line message that names the option to use instead."""
 import os
+import tempfile
 
-from harness import OPTIONS, Checker, run, scene
+from harness import OPTIONS, Checker, run, scene, scene_with
 
 c = Checker()
 
@@ -31,6 +33,27 @@ for name, mesh in cases:
                 c.check(k["min_gap"] >= -1e-12 and k["min_pressure"] >= -1e-7 * k["max_pressure"] and s["stationarity"] <= 1e-7,
                         "%s: KKT min gap %.1e, min pressure %.1e, stationarity %.1e" % (tag, k["min_gap"], k["min_pressure"], s["stationarity"]))
                 c.check("was not used" not in out, "%s: every option of the preset is used" % tag)
+
+# Semismooth under a kappa jump: PETSc's derivative of the Fischer-Burmeister function takes 1/2 where both its
+# arguments are below 1e-6, which the soft rows' residuals were (scaled by the stiff rows' diagonal) until
+# every row was scaled by its own: DIVERGED_MAX_IT after 200 Newton steps at K = 1e2 and 1e6, P1 and CR.
+with tempfile.TemporaryDirectory() as tmp:
+    for K in ["1e2", "1e6"]:
+        for space in ["p1", "cr"]:
+            for ranks in [1, 2]:
+                args = scene_with("stiff-layers-across", "1e6", K, tmp) + ["-box_faces", "8", "-refine", "1", "-space", space]
+                tag = "stiff-layers-across K=%s %s %d rank(s) preset semismooth" % (K, space, ranks)
+                _, _, _, ref = run(args, ranks=ranks)
+                rc, out, err, s = run(args + preset("semismooth"), ranks=ranks, check=False)
+                c.check(rc == 0 and s["solver"]["converged_reason"].startswith("CONVERGED"),
+                        "%s: %s" % (tag, s["solver"]["converged_reason"] if s else err.strip()[-200:]))
+                if rc != 0:
+                    continue
+                k = s["kkt"]
+                c.check(abs(s["energy"] - ref["energy"]) <= 1e-9 * abs(ref["energy"]), "%s: energy %.15e vs default %.15e" % (tag, s["energy"], ref["energy"]))
+                c.check(k["active"] == ref["kkt"]["active"], "%s: active set %d vs %d" % (tag, k["active"], ref["kkt"]["active"]))
+                c.check(k["relative"] <= 1e-6 and s["stationarity"] <= 1e-6 and "warning" not in out + err,
+                        "%s: KKT relative %.1e, stationarity %.1e, no warning" % (tag, k["relative"], s["stationarity"]))
 
 rc, out, err, s = run(scene("paper-5.1") + ["-box_faces", "8", "-pc_type", "gamg"], check=False)
 lines = [l for l in err.splitlines() if l.strip()]

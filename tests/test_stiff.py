@@ -17,7 +17,7 @@ import math
 import os
 import tempfile
 
-from harness import OPTIONS, ROOT, Checker, run, scene
+from harness import OPTIONS, ROOT, Checker, run, scene, scene_with
 
 try:
     import h5py
@@ -30,18 +30,6 @@ HIGH_CONTRAST = ["-options_file", os.path.join(OPTIONS, "solvers", "high-contras
 DIRECT = ["-ksp_type", "preonly", "-pc_type", "lu"] + HIGH_CONTRAST + ["-snes_vi_zero_tolerance", "0"]
 TOL = 1e-8      # identities of the discrete problem (scaling, equal solves)
 TOL_KKT = 1e-6  # relative KKT residuals, as in run/stability
-
-
-def scene_with(name, token, value):
-    """Scene options with a literal parameter (the contrast 1e6, the load factor 1e10) replaced by value."""
-    args = scene(name)
-    with open(args[1]) as f:
-        text = f.read()
-    assert token in text, "%s does not contain %s" % (name, token)
-    fd, path = tempfile.mkstemp(prefix="stiff-", dir=TMP)
-    with os.fdopen(fd, "w") as f:
-        f.write("\n".join(l if l.startswith("#") else l.replace(token, value) for l in text.splitlines()) + "\n")
-    return ["-options_file", path]
 
 
 def solve(args, ranks=1, bottom=False):
@@ -91,7 +79,7 @@ def rates(tag, name, token, value, extra=(), sizes=(8, 16)):
     for space in ["p1", "cr"]:
         errs = []
         for n in sizes:
-            args = (scene_with(name, token, value) if token else scene(name)) + ["-space", space, "-box_faces", str(n)] + list(extra)
+            args = (scene_with(name, token, value, TMP) if token else scene(name)) + ["-space", space, "-box_faces", str(n)] + list(extra)
             s, u = solve(args)
             check_kkt("%s %s N=%d" % (tag, space, n), s, u)
             errs.append(s["error"])
@@ -127,7 +115,7 @@ with tempfile.TemporaryDirectory() as TMP:
     for K, tol in [("1e6", TOL), ("1e9", 1e-6)]:
         for space in ["p1", "cr"]:
             tag = "stiff-checkerboard K=%s %s, default solver" % (K, space)
-            args = scene_with("stiff-checkerboard", "1e6", K) + ["-box_faces", "16", "-space", space]
+            args = scene_with("stiff-checkerboard", "1e6", K, TMP) + ["-box_faces", "16", "-space", space]
             s, u = solve(args)
             sd, ud = solve(args + DIRECT)
             c.check(s["solver"]["converged_reason"].startswith("CONVERGED") and s["solver"]["newton_iterations"] <= 20,
@@ -141,10 +129,10 @@ with tempfile.TemporaryDirectory() as TMP:
     # Load scaling with psi = 0 (2 ranks): u(s f) = s u(f), J = s^2 J(1).
     for space in ["p1", "cr"]:
         small = ["-box_faces", "16", "-space", space]
-        s1, u1 = solve(scene_with("stiff-load", "1e10", "1") + small, ranks=2)
+        s1, u1 = solve(scene_with("stiff-load", "1e10", "1", TMP) + small, ranks=2)
         for factor in ["1e-10", "1e-5", "1e5", "1e10"]:
             tag = "stiff-load s=%s %s" % (factor, space)
-            s, u = solve(scene_with("stiff-load", "1e10", factor) + small, ranks=2)
+            s, u = solve(scene_with("stiff-load", "1e10", factor, TMP) + small, ranks=2)
             f = float(factor)
             check_kkt(tag, s, u)
             d = same(u, u1, f)
@@ -177,7 +165,7 @@ with tempfile.TemporaryDirectory() as TMP:
     # Many critical points (k = 8: the contact set switches 2k = 16 times) and the Dirichlet/contact junction.
     for name, extra in [("stiff-critical", ["-box_faces", "64"]), ("stiff-below-h2", ["-refine", "2"])]:
         for space in ["p1", "cr"]:
-            args = (scene_with(name, "64", "8") if name == "stiff-critical" else scene(name)) + extra + ["-space", space]
+            args = (scene_with(name, "64", "8", TMP) if name == "stiff-critical" else scene(name)) + extra + ["-space", space]
             if name == "stiff-below-h2":
                 args += ["-mesh_file", os.path.join(ROOT, "petsc-options", "meshes", "split-bottom.msh")]
             s, u, bottom = solve(args, bottom=True)

@@ -33,6 +33,8 @@ struct KKTStop {
   const System  *sys        = nullptr;
   Vec            lower      = nullptr; // the bounds, in the solver's units
   Vec            measure    = nullptr; // ContactMeasure, made at the first check
+  Vec            rowScale   = nullptr; // where the solver's F is A u - b with its rows scaled by it (SSLS)
+  Vec            residual   = nullptr; // A u - b from such an F
   PetscReal      loadFactor = 1;       // the load in the solver's units
   PetscReal      tolerance  = 0;
   PetscInt       steps      = 0; // Newton steps taken beyond the wrapped test
