@@ -27,6 +27,18 @@ namespace {
 // bounds and does not move active DOFs), so round-off of the largest values is all the tolerance needs.
 constexpr PetscReal kSnesRtol = 1e-9, kKspRtol = 1e-10, kZeroTolerance = 1e-14;
 
+// The semismooth solver (SNESVINEWTONSSLS) works on u of size 2^kSslsExponent rather than 1 (datascale.h).
+// PETSc 3.18 differentiates its Fischer-Burmeister function Phi(a, b) = a + b - sqrt(a^2 + b^2), a = u - psi,
+// b = F, with the derivative 1/2 for both a and b wherever both are below 1e-6 in absolute value: near the
+// solution that is every contact DOF with a small gap or a small reaction (close to the free boundary, on
+// fine meshes, on stretched cells), whose Newton steps then move it by a fraction of what they should, and
+// the solve converges linearly (stiff-stretched-2d CR -refine 3: 110 Newton steps, 200 and
+// DIVERGED_MAX_IT with -box_faces 3 before the rows were scaled by their diagonal). Phi is positively
+// homogeneous, Phi(s a, s b) = s Phi(a, b), so scaling u (and with it F) by 2^20 leaves the solution and
+// Newton's steps as they are and moves that threshold to 1e-12 relative, below where double precision
+// resolves a and b anyway: 5 to 7 Newton steps there.
+constexpr int kSslsExponent = 20;
+
 struct ResidualContext {
   Mat  A;
   Vec  b;
@@ -313,6 +325,16 @@ static PetscErrorCode StraightStartNorm(SNES snes, const System &sys, ResidualCo
 // needs its own Jacobian matrix (see ConstantJacobian), and it solves the full system, where the AMG
 // re-use shell, which works on the reduced-space solver's inactive sets, does not apply: plain BoomerAMG
 // takes its place.
+// Whether the user gave the SNES's option `name` (under its prefix).
+static PetscErrorCode SNESOptionGiven(SNES snes, const char *name, PetscBool *given)
+{
+  const char *prefix;
+  PetscFunctionBeginUser;
+  PetscCall(SNESGetOptionsPrefix(snes, &prefix));
+  PetscCall(PetscOptionsHasName(NULL, prefix, name, given));
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode AdaptToSNESType(SNES snes, const System &sys, ResidualContext &ctx, Mat *J)
 {
   PetscBool rsls, shell;
@@ -341,31 +363,35 @@ static PetscErrorCode AdaptToSNESType(SNES snes, const System &sys, ResidualCont
     // when the active set changes: from a guess whose active set is far off (a coarse level that cannot
     // resolve the load, e.g. stiff-critical k = 64 through box 8x8) it cut every step to 1e-3 and took 39
     // Newton steps where full steps take 2.
-    const char *prefix;
-    PetscBool   chosen;
-    PetscCall(SNESGetOptionsPrefix(snes, &prefix));
-    PetscCall(PetscOptionsHasName(NULL, prefix, "-snes_linesearch_type", &chosen));
-    if (!chosen) {
-      SNESLineSearch ls;
-      PetscCall(SNESGetLineSearch(snes, &ls));
-      PetscCall(SNESLineSearchSetType(ls, SNESLINESEARCHBASIC));
-    }
+    SNESLineSearch ls;
+    PetscBool      chosen;
+    PetscCall(SNESOptionGiven(snes, "-snes_linesearch_type", &chosen));
+    PetscCall(SNESGetLineSearch(snes, &ls));
+    if (!chosen) PetscCall(SNESLineSearchSetType(ls, SNESLINESEARCHBASIC));
     PetscFunctionReturn(0);
   }
   PetscCall(MatDuplicate(sys.A, MAT_COPY_VALUES, J));
   ctx.refresh = true;
-  // The semismooth function Phi(u - psi, F) = (u - psi) + F - sqrt((u - psi)^2 + F^2) is solved with PETSc
-  // 3.18's derivative of Phi, which takes 1/2 for both arguments wherever both are below 1e-6 in absolute
-  // value, a threshold that assumes u - psi and F of one size. Scaled by the largest diagonal entry
-  // (datascale.h), the rows of a soft material beside a stiff one carry F of 1/K of their size: at their
-  // active contact DOFs (u = psi, F a small reaction) that derivative mixed the row into the step, and the
-  // solve crawled (stiff-layers-across, K = 1e2 and 1e6: DIVERGED_MAX_IT after 200 Newton steps; K = 1: 63
-  // steps). Each row divided by its own diagonal entry makes F a displacement, of the size of u - psi in
-  // every material; the solution does not change (F >= 0 and (u - psi) F = 0 hold row by row).
+  // The semismooth function Phi(u - psi, F) weighs u - psi against F (see kSslsExponent for PETSc's
+  // threshold in its derivative). Scaled by the largest diagonal entry (datascale.h), the rows of a soft
+  // material beside a stiff one carry F of 1/K of their size, and their contact DOFs met that threshold
+  // first (stiff-layers-across, K = 1e2 and 1e6: DIVERGED_MAX_IT after 200 Newton steps). Each row divided
+  // by its own diagonal entry makes F a displacement, of the size of u - psi in every material (with
+  // kSslsExponent too: stiff-checkerboard P1 4 Newton steps instead of 15); the solution does not change
+  // (F >= 0 and (u - psi) F = 0 hold row by row).
   PetscCall(MatCreateVecs(sys.A, &ctx.rowScale, NULL));
   PetscCall(MatGetDiagonal(sys.A, ctx.rowScale));
   PetscCall(VecReciprocal(ctx.rowScale));
   PetscCall(SNESSetJacobian(snes, *J, *J, ConstantJacobian, &ctx));
+  // The solve works on u of size 2^kSslsExponent (Solve): steps of that size are not to be cut.
+  SNESLineSearch ls;
+  PetscBool      chosen;
+  PetscReal      steptol, maxstep, rtol, atol, ltol;
+  PetscInt       maxits;
+  PetscCall(SNESOptionGiven(snes, "-snes_linesearch_maxstep", &chosen));
+  PetscCall(SNESGetLineSearch(snes, &ls));
+  PetscCall(SNESLineSearchGetTolerances(ls, &steptol, &maxstep, &rtol, &atol, &ltol, &maxits));
+  if (!chosen) PetscCall(SNESLineSearchSetTolerances(ls, steptol, std::ldexp(maxstep, kSslsExponent), rtol, atol, ltol, maxits));
   if (shell) {
     PetscCall(PCSetType(pc, PCHYPRE));
     PetscCall(PCHYPRESetType(pc, "boomeramg"));
@@ -907,6 +933,12 @@ PetscErrorCode Solve(const Space &space, const Problem &problem, const System &s
   PetscCall(DataShiftCompute(space, sys, lower, &scale.shift));
   PetscCall(ShiftData(space, sys, lower, opts.initialGuess ? u : nullptr, scale, false, &savedB));
   PetscCall(DataScaleCompute(space, sys, lower, &scale));
+  { // the semismooth solver works on u of size 2^kSslsExponent
+    char      type[64] = "";
+    PetscBool set;
+    PetscCall(PetscOptionsGetString(NULL, NULL, "-snes_type", type, sizeof(type), &set));
+    if (r.vi && set && std::string(type) == SNESVINEWTONSSLS) scale.u -= kSslsExponent;
+  }
   PetscCall(ScaleData(sys, lower, opts.initialGuess ? u : nullptr, scale, false));
   r.scaleExponent = scale.u;
   // Start inside K_h: from u_D, or from the guess with u_D on Gamma_D and u >= psi on Gamma_C.

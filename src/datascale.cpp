@@ -203,8 +203,18 @@ PetscErrorCode ScaleData(const System &sys, Vec lower, Vec u, const DataScale &s
   if (scale.rows != 0) PetscCall(MatScale(sys.A, std::ldexp(1.0, sign * (int)scale.rows)));
   if (scale.u + scale.rows != 0) PetscCall(VecScale(sys.b, std::ldexp(1.0, sign * (int)(scale.u + scale.rows))));
   if (scale.u == 0) PetscFunctionReturn(0);
-  for (Vec v : {sys.uD, lower, u})
-    if (v) PetscCall(VecScale(v, std::ldexp(1.0, sign * (int)scale.u))); // -infinity (no bound) stays -infinity
+  for (Vec v : {sys.uD, u})
+    if (v) PetscCall(VecScale(v, std::ldexp(1.0, sign * (int)scale.u)));
+  if (lower) { // PETSC_NINFINITY (no bound) is a finite number, -PETSC_MAX_REAL / 4, and has to stay what it is:
+    // divided, it became a finite bound, which the semismooth function Phi(u - lower, F) squared to infinity
+    PetscScalar *a;
+    PetscInt     n;
+    PetscCall(VecGetLocalSize(lower, &n));
+    PetscCall(VecGetArray(lower, &a));
+    for (PetscInt i = 0; i < n; ++i)
+      if (PetscRealPart(a[i]) > PETSC_NINFINITY) a[i] = std::ldexp(PetscRealPart(a[i]), sign * (int)scale.u);
+    PetscCall(VecRestoreArray(lower, &a));
+  }
   PetscFunctionReturn(0);
 }
 
