@@ -113,7 +113,9 @@ PetscErrorCode ReportPrint(MPI_Comm comm, const Report &r)
   if (r.hasExact) o << Format("  error vs exact: L2 %.6e, broken H1 seminorm %.6e, H1 %.6e, energy %.6e\n", (double)r.error.l2, (double)r.error.h1semi, (double)r.error.h1, (double)r.error.energy);
   if (r.estimate.computed) {
     const Estimate &e = r.estimate;
-    o << Format("  estimate of the energy error: eta %.6e (flux %.3e, nonconformity %.3e, contact %.3e, oscillation %.3e), %.3f s\n", (double)e.eta, (double)e.flux, (double)e.nonconformity, (double)e.contact, (double)e.oscillation, e.seconds);
+    // The contact term gamma = int_{Gamma_C} sigma.n (v - psi) is of the units of eta^2 (E^2 <= (F + osc) E + gamma):
+    // printed beside the norms as sqrt(gamma), where it scales like them (the summary keeps gamma).
+    o << Format("  estimate of the energy error: eta %.6e (flux %.3e, nonconformity %.3e, contact sqrt(gamma) %.3e, oscillation %.3e), %.3f s\n", (double)e.eta, (double)e.flux, (double)e.nonconformity, (double)std::sqrt(std::max(e.contact, (PetscReal)0)), (double)e.oscillation, e.seconds);
     if (r.hasExact) o << Format("  energy error %.6e, estimate %.6e, efficiency index eta/error %.3f\n", (double)r.error.energy, (double)e.eta, (double)(e.eta / r.error.energy));
   }
   o << "  time [s]:";

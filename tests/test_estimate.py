@@ -22,6 +22,8 @@ vertex-average companion; P1: flux equilibrated on vertex patches, v = u_h):
   with Gamma_C Dirichlet, an affine part both spaces hold, so the error does not depend on c): eta equals
   that of the same problem with Gamma_C as a Dirichlet part, u_D = c (1 - y) (an independent computation:
   the same discrete solution, no contact term), for c = 1e2 and 1e6, both elements, 1 and 2 ranks;
+- the printed parts of eta scale like eta (an invariant: u(s f) = s u(f)): the contact term gamma, of eta^2's
+  units, is printed as sqrt(gamma) and kept as gamma in the summary (stiff-load, load 1 and 1e10);
 - -estimate none: nothing printed, no "estimate" in the JSON summary, no time in the Estimate stage;
 - the cell indicators in -output (cell field "eta", one value per cell) satisfy sum_T eta_T^2 =
   F^2 + N^2 + osc^2 + 2 gamma (an invariant of their definition, gamma >= 0 face by face here) and
@@ -29,9 +31,10 @@ vertex-average companion; P1: flux equilibrated on vertex patches, v = u_h):
 - the convergence study's JSON rows carry the estimate and its efficiency index."""
 import math
 import os
+import re
 import tempfile
 
-from harness import Checker, rel, run, scene
+from harness import Checker, rel, run, scene, scene_with
 
 c = Checker()
 tight = ["-ksp_rtol", "1e-13", "-snes_rtol", "1e-13"]
@@ -186,6 +189,24 @@ c.check("estimate" not in s and s["time"]["estimate"] == 0, "-estimate none: no 
 c.check(s["time"]["adapt"] == 0, "a run without -adapt_steps: Adapt stage time %g" % s["time"]["adapt"])
 _, out, _, s = run(scene("manufactured-2d") + ["-space", "cr"])
 c.check("estimate of the energy error" in out and "efficiency index" in out and s["time"]["estimate"] > 0, "by default the estimate is printed with its efficiency index")
+
+# The printed parts are of the units of eta: the contact term gamma (eta^2's units, the summary's "contact")
+# as sqrt(gamma). With the load scaled by s (stiff-load: 1e10 against 1) every printed part scales by s.
+printed = {}
+for factor in ["1", "1e10"]:
+    with tempfile.TemporaryDirectory() as tmp:
+        for el in ["cr", "p1"]:
+            _, out, _, s = run(scene_with("stiff-load", "1e10", factor, tmp) + ["-space", el, "-box_faces", "8"])
+            line = next(l for l in out.splitlines() if "estimate of the energy error" in l)
+            parts = re.findall(r"(eta|flux|nonconformity|contact|oscillation)( sqrt\(gamma\))? ([0-9.e+-]+)", line)
+            printed[(factor, el)] = {k: float(v) for k, _, v in parts}
+            g = next((float(v) for k, sq, v in parts if k == "contact" and sq), None)
+            c.check(g is not None and s["estimate"]["contact"] > 0 and rel(g, math.sqrt(s["estimate"]["contact"])) <= 1e-3,
+                    "%s load x%s: printed contact sqrt(gamma) %s against the summary's gamma %.3e" % (el, factor, g, s["estimate"]["contact"]))
+for el in ["cr", "p1"]:
+    one, big = printed[("1", el)], printed[("1e10", el)]
+    c.check(set(one) == set(big) and all(rel(big[k], 1e10 * one[k]) <= 1e-3 for k in one),
+            "%s: every printed part scales with the load (x1: %s; x1e10: %s)" % (el, one, big))
 
 # 5. The cell indicators in the output.
 try:
