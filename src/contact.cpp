@@ -32,8 +32,8 @@ constexpr PetscReal kSnesRtol = 1e-9, kKspRtol = 1e-10, kZeroTolerance = 1e-14;
 // b = F, with the derivative 1/2 for both a and b wherever both are below 1e-6 in absolute value: near the
 // solution that is every contact DOF with a small gap or a small reaction (close to the free boundary, on
 // fine meshes, on stretched cells), whose Newton steps then move it by a fraction of what they should, and
-// the solve converges linearly (stiff-stretched-2d CR -refine 3: 110 Newton steps, 200 and
-// DIVERGED_MAX_IT with -box_faces 3 before the rows were scaled by their diagonal). Phi is positively
+// the solve converges linearly (stiff-stretched-2d -box_faces 3 -refine 3: P1 128 Newton steps, CR
+// DIVERGED_MAX_IT after 200, and 110 with the rows scaled by their diagonal). Phi is positively
 // homogeneous, Phi(s a, s b) = s Phi(a, b), so scaling u (and with it F) by 2^20 leaves the solution and
 // Newton's steps as they are and moves that threshold to 1e-12 relative, below where double precision
 // resolves a and b anyway: 5 to 7 Newton steps there.
@@ -320,11 +320,6 @@ static PetscErrorCode StraightStartNorm(SNES snes, const System &sys, ResidualCo
   PetscFunctionReturn(0);
 }
 
-// What the options chose, made to work where it can be. RSLS gets the Jacobian of AmgReuseJacobian
-// (blocks in hypre's format when BoomerAMG is inside the re-use shell). Another SNESVI type (-snes_type vinewtonssls)
-// needs its own Jacobian matrix (see ConstantJacobian), and it solves the full system, where the AMG
-// re-use shell, which works on the reduced-space solver's inactive sets, does not apply: plain BoomerAMG
-// takes its place.
 // Whether the user gave the SNES's option `name` (under its prefix).
 static PetscErrorCode SNESOptionGiven(SNES snes, const char *name, PetscBool *given)
 {
@@ -335,6 +330,11 @@ static PetscErrorCode SNESOptionGiven(SNES snes, const char *name, PetscBool *gi
   PetscFunctionReturn(0);
 }
 
+// What the options chose, made to work where it can be. RSLS gets the Jacobian of AmgReuseJacobian
+// (blocks in hypre's format when BoomerAMG is inside the re-use shell). Another SNESVI type (-snes_type vinewtonssls)
+// needs its own Jacobian matrix (see ConstantJacobian), and it solves the full system, where the AMG
+// re-use shell, which works on the reduced-space solver's inactive sets, does not apply: plain BoomerAMG
+// takes its place.
 static PetscErrorCode AdaptToSNESType(SNES snes, const System &sys, ResidualContext &ctx, Mat *J)
 {
   PetscBool rsls, shell;
