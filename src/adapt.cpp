@@ -272,7 +272,6 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
   }
   PetscCall(indicators_(m, eta2, row.eta, row.estimateSeconds));
   // The adaptive run proper ends after -adapt_steps, below -adapt_tol or at -adapt_max_dofs; the
-  // reference steps follow it.
   // reference steps follow it. An early end is said, so that fewer steps than asked for do not pass unseen.
   if (adaptEnd_ < 0) {
     const std::string at = Format("ended at step %d of -adapt_steps %d: ", (int)step_, (int)adapt_.steps);

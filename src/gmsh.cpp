@@ -274,11 +274,11 @@ std::string GmshCheckFile(const std::string &file, const std::string &name, Gmsh
   return problem;
 }
 
-std::vector<GmshPhysicalName> GmshPhysicalNames(const std::string &file)
+bool GmshPhysicalNames(const std::string &file, std::vector<GmshPhysicalName> &names)
 {
-  std::vector<GmshPhysicalName> names;
-  FILE                         *fp = std::fopen(file.c_str(), "r");
-  if (!fp) return names;
+  names.clear();
+  FILE *fp = std::fopen(file.c_str(), "r");
+  if (!fp) return false;
   Reader r(fp);
   while (r.Next() && !r.Is("$Nodes"))
     if (r.Is("$PhysicalNames")) {
@@ -296,7 +296,7 @@ std::vector<GmshPhysicalName> GmshPhysicalNames(const std::string &file)
       break;
     }
   std::fclose(fp);
-  return names;
+  return true;
 }
 
 std::string CheckCoincidentVertices(DM dm, const std::string &name, const GmshNodes &nodes)

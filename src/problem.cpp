@@ -7,7 +7,6 @@
 #include "signorini/options.h"
 
 #include <algorithm>
-#include <cstdio>
 #include <cstdlib>
 #include <map>
 #include <tuple>
@@ -45,10 +44,9 @@ static PetscErrorCode PartNames(MPI_Comm comm, std::map<std::string, std::vector
   std::string text; // "tag name" lines; "?" where the file cannot be opened (its reader says why, later)
   PetscCallMPI(MPI_Comm_rank(comm, &rank));
   if (rank == 0) {
-    std::FILE *fp = std::fopen(file, "r");
-    if (fp) std::fclose(fp);
-    else text = "?";
-    for (const GmshPhysicalName &n : GmshPhysicalNames(file))
+    std::vector<GmshPhysicalName> physical;
+    if (!GmshPhysicalNames(file, physical)) text = "?";
+    for (const GmshPhysicalName &n : physical)
       if (n.dim == 1 || n.dim == 2) text += Format("%ld %s\n", n.tag, n.name.c_str());
   }
   int length = (int)text.size();

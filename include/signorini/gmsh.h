@@ -25,13 +25,13 @@ struct GmshNodes {
 std::string GmshCheckFile(const std::string &file, const std::string &name, GmshNodes &nodes);
 
 // The physical names of a Gmsh file ($PhysicalNames, before $Nodes in msh 2.2 and 4.1, ASCII or binary):
-// (dimension, tag, name) each; empty where the file has none or cannot be read.
+// (dimension, tag, name) each, none where the file has none. Returns false where the file cannot be opened.
 struct GmshPhysicalName {
   int         dim;
   long        tag;
   std::string name;
 };
-std::vector<GmshPhysicalName> GmshPhysicalNames(const std::string &file);
+bool GmshPhysicalNames(const std::string &file, std::vector<GmshPhysicalName> &names);
 
 // Two vertices of `dm` closer than 1e-10 times the shortest edge at either of them are one point listed
 // twice: a mesh with a duplicated node is cut along it (a crack), which changes the problem without a
