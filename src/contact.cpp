@@ -330,6 +330,29 @@ static PetscErrorCode SNESOptionGiven(SNES snes, const char *name, PetscBool *gi
   PetscFunctionReturn(0);
 }
 
+// The Krylov method of the semismooth solver, unless the user chose one. Its Jacobian D_a + D_b A is not
+// symmetric, and CG (the reduced-space default) broke down on it (DIVERGED_LINEAR_SOLVE in the first step):
+// GMRES. And GMRES's Gram-Schmidt with a second pass where orthogonality is lost: next to a kappa jump the
+// Jacobian is ill-conditioned enough that the single classical pass lost it (stiff-checkerboard CR, K = 1e6:
+// the recurrence's residual fell to 2e-7 while the true one stayed at 6e-7 of the start, then
+// DIVERGED_BREAKDOWN); the pass costs nothing where orthogonality holds (the same iterations on every other
+// stiff scene).
+static PetscErrorCode KrylovForSemismooth(SNES snes, KSP ksp)
+{
+  PetscBool typeGiven, gs, mgs, cgs;
+  PetscFunctionBeginUser;
+  PetscCall(SNESOptionGiven(snes, "-ksp_type", &typeGiven));
+  if (!typeGiven) {
+    PetscCall(KSPSetType(ksp, KSPGMRES));
+    PetscCall(KSPSetFromOptions(ksp)); // GMRES's own options, such as -ksp_gmres_restart
+  }
+  PetscCall(SNESOptionGiven(snes, "-ksp_gmres_cgs_refinement_type", &gs));
+  PetscCall(SNESOptionGiven(snes, "-ksp_gmres_modifiedgramschmidt", &mgs));
+  PetscCall(SNESOptionGiven(snes, "-ksp_gmres_classicalgramschmidt", &cgs));
+  if (!gs && !mgs && !cgs) PetscCall(KSPGMRESSetCGSRefinementType(ksp, KSP_GMRES_CGS_REFINE_IFNEEDED)); // no-op for non-GMRES types
+  PetscFunctionReturn(0);
+}
+
 // What the options chose, made to work where it can be. RSLS gets the Jacobian of AmgReuseJacobian
 // (blocks in hypre's format when BoomerAMG is inside the re-use shell). Another SNESVI type (-snes_type vinewtonssls)
 // needs its own Jacobian matrix (see ConstantJacobian), and it solves the full system, where the AMG
@@ -383,6 +406,7 @@ static PetscErrorCode AdaptToSNESType(SNES snes, const System &sys, ResidualCont
   PetscCall(MatGetDiagonal(sys.A, ctx.rowScale));
   PetscCall(VecReciprocal(ctx.rowScale));
   PetscCall(SNESSetJacobian(snes, *J, *J, ConstantJacobian, &ctx));
+  PetscCall(KrylovForSemismooth(snes, ksp));
   // The solve works on u of size 2^kSslsExponent (Solve): steps of that size are not to be cut.
   SNESLineSearch ls;
   PetscBool      chosen;
