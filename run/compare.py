@@ -10,7 +10,8 @@ the summary's run_seconds), without the error computations.
 
 The error is the energy error: against the exact solution where the scene has one; otherwise, for uniform
 rows, against the study's reference (-reference_refine), and for adaptive rows against the solution of an
-adaptive run continued for a few more steps (-adapt_reference_steps m: the adapted meshes are nested, so
+adaptive run continued for a few more steps (-adapt_reference_steps m, or fewer where a mesh has reached
+-adapt_reference_dofs times the run's last DOFs: the adapted meshes are nested, so
 every step is compared with it exactly, cell by cell). That reference is only a few steps finer, so the
 errors of the last steps before it are too low (for a conforming linear problem by the factor
 sqrt(1 - (E_ref / E)^2)); the table marks the reference steps "r" and the plots leave them out."""
@@ -24,6 +25,12 @@ import launch
 # signorini options that belong to the convergence study only (each takes a value)
 STUDY_ONLY = {"-study_levels", "-reference_refine", "-reference_space", "-study_spaces", "-study_output", "-study_profiles", "-space"}
 REFERENCE_STEPS = 6  # default -adapt_reference_steps without an exact solution: the last step's error is then about 5-10 % low
+# -adapt_reference_dofs: the reference ends earlier, at the first mesh with this many times the DOFs of the
+# run's last step. In 2D the 6 steps end first (a step grows the mesh 1.6 to 1.8 times: 17 to 31 times the
+# DOFs); in 3D a step grows it 3 to 4 times, so 6 steps asked for up to 4000 times the DOFs (paper-5.1-3d P1
+# from 8 k DOFs: the run was killed for memory), and 3 or 4 steps reach this factor, where the last step's
+# error, falling like DOFs^-1/3, reads about 5 % low, as in 2D.
+REFERENCE_DOFS = 32
 FIELDS = ["strategy", "element", "step", "reference_step", "cells", "dofs", "error", "error_against", "eta", "efficiency", "newton", "ksp", "seconds"]
 
 
@@ -56,7 +63,8 @@ def uniform_rows(study):
     return rows
 
 
-def run_adaptive(scene, options, element, out_dir, ranks=1, steps=None, max_dofs=None, theta=None, reference_steps=0):
+def run_adaptive(scene, options, element, out_dir, ranks=1, steps=None, max_dofs=None, theta=None, reference_steps=0,
+                 reference_dofs=REFERENCE_DOFS):
     """One adaptive run of `element`; returns its summary. Without `steps` it refines until the DOFs reach
     max_dofs. Writes adapt-ELEMENT.json and the last mesh's solution adapt-ELEMENT.h5 (with its indicators)."""
     summary = os.path.join(out_dir, "adapt-%s.json" % element)
@@ -65,7 +73,7 @@ def run_adaptive(scene, options, element, out_dir, ranks=1, steps=None, max_dofs
     if theta is not None:
         args += ["-adapt_theta", repr(theta)]
     if reference_steps:
-        args += ["-adapt_reference_steps", str(reference_steps)]
+        args += ["-adapt_reference_steps", str(reference_steps), "-adapt_reference_dofs", repr(reference_dofs)]
     r = launch.run(args, ranks, summary=summary)
     if r.returncode != 0:
         sys.stderr.write(r.stdout + r.stderr)
@@ -83,7 +91,7 @@ def adaptive_rows(element, summary):
     return rows
 
 
-def adaptive(scene, options, study, out_dir, ranks=1, steps=None, theta=None, reference_steps=None):
+def adaptive(scene, options, study, out_dir, ranks=1, steps=None, theta=None, reference_steps=None, reference_dofs=REFERENCE_DOFS):
     """The adaptive run of every element of the study, from the study's first mesh, to about the DOFs of
     its finest level (or `steps` steps); returns their rows and summaries."""
     has_exact = all("error_exact" in r for r in study["rows"])
@@ -92,7 +100,7 @@ def adaptive(scene, options, study, out_dir, ranks=1, steps=None, theta=None, re
     rows, summaries = [], {}
     for element in dict.fromkeys(r["element"] for r in study["rows"]):
         finest = max(r["dofs"] for r in study["rows"] if r["element"] == element)
-        s = run_adaptive(scene, options, element, out_dir, ranks, steps, finest, theta, reference_steps)
+        s = run_adaptive(scene, options, element, out_dir, ranks, steps, finest, theta, reference_steps, reference_dofs)
         summaries[element] = s
         rows += adaptive_rows(element, s)
     return rows, summaries

@@ -1,6 +1,7 @@
 """Uniform against adaptive refinement of a scene, with both elements (or those of -study_spaces).
 
-  run/study SCENE [--ranks P] [--out DIR] [--adapt-steps K] [--theta T] [--reference-steps M] [signorini options...]
+  run/study SCENE [--ranks P] [--out DIR] [--adapt-steps K] [--theta T] [--reference-steps M] [--reference-dofs F]
+            [signorini options...]
 
   run/study manufactured-2d -box_faces 4 -study_levels 5
   run/study paper-5.1 -box_faces 2 -study_levels 6 -reference_refine 3 -load_quadrature centroid
@@ -11,7 +12,8 @@
    -reference_space p1|cr) otherwise.
 2. An adaptive run per element from the same first mesh (-adapt_steps K, default: until the DOFs of the
    finest uniform level; -adapt_theta T), its errors against the exact solution or, without one, against
-   an adaptive reference M steps further (default 6; see run/compare.py).
+   an adaptive reference M steps further (default 6), or fewer where its mesh has F times the last
+   step's DOFs (default 32: 3D steps grow the mesh about 4 times; see run/compare.py).
 3. One table of both strategies (compare.csv, compare.json), error and estimate against DOFs and against run
    time (compare-vs-dofs.png, compare-vs-time.png), the last adapted mesh of each element in 2D with its
    indicators and the contact set (adapted-mesh-ELEMENT.png), and when the adaptive run reaches the finest
@@ -21,6 +23,7 @@ import csv
 import json
 import os
 import sys
+import time
 
 import compare
 import launch
@@ -88,10 +91,13 @@ def main():
     ap.add_argument("--theta", type=float, default=None, help="Doerfler parameter of the adaptive run (-adapt_theta)")
     ap.add_argument("--reference-steps", type=int, default=None,
                     help="steps beyond the adaptive run for its reference (default: none with an exact solution, else %d)" % compare.REFERENCE_STEPS)
+    ap.add_argument("--reference-dofs", type=float, default=compare.REFERENCE_DOFS,
+                    help="the reference ends earlier, at the first mesh with this many times the DOFs of the run's last step (0: no such end; default %g)" % compare.REFERENCE_DOFS)
     args, options = ap.parse_known_args()
     out = args.out or os.path.join(ROOT, "results", args.scene)
+    started = time.time()
     study = run_study(args.scene, options, out, args.ranks)
-    rows, summaries = compare.adaptive(args.scene, options, study, out, args.ranks, args.adapt_steps, args.theta, args.reference_steps)
+    rows, summaries = compare.adaptive(args.scene, options, study, out, args.ranks, args.adapt_steps, args.theta, args.reference_steps, args.reference_dofs)
     rows = compare.uniform_rows(study) + rows
     print("\nuniform against adaptive refinement (error: energy norm; time: run time up to that mesh; r: adaptive step for the reference only)")
     print(compare.table(rows))
@@ -99,7 +105,9 @@ def main():
         print(line)
     compare.write(rows, out)
     compare.pictures(rows, summaries, out, study["scene"])
-    print("wrote in %s: %s" % (out, ", ".join(sorted(f for f in os.listdir(out) if f.endswith((".json", ".csv", ".png"))))))
+    # this run's files only: an earlier study in the same folder (other elements, another scene) left its own
+    written = [f for f in os.listdir(out) if f.endswith((".json", ".csv", ".png")) and os.path.getmtime(os.path.join(out, f)) >= started]
+    print("wrote in %s: %s" % (out, ", ".join(sorted(written))))
 
 
 if __name__ == "__main__":

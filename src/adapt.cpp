@@ -25,6 +25,7 @@ PetscErrorCode AdaptOptionsFromCommandLine(MPI_Comm comm, AdaptOptions &o)
   PetscCall(OptionEList(PetscOptionsObject, "-adapt_refinement", "Refinement of the marked cells: bisection of their longest edges or of all their edges (2D and 3D), or PETSc's refine_sbr (2D)", {"bisection", "bisection_all", "sbr"}, how));
   o.refinement = (LocalRefinement)how;
   PetscCall(OptionInt(PetscOptionsObject, "-adapt_reference_steps", "Go on this many steps beyond the adaptive run and measure every earlier step's energy error against the last solution (0: none)", o.referenceSteps, 0, 100));
+  PetscCall(OptionReal(PetscOptionsObject, "-adapt_reference_dofs", "The reference steps also end at the first mesh with this many times the DOFs of the adaptive run's last step (0: after -adapt_reference_steps only)", o.referenceDofs, 0));
   PetscOptionsEnd();
   PetscFunctionReturn(0);
 }
@@ -281,7 +282,7 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
     if (!ended.empty()) adaptEnd_ = step_;
   }
   row.reference = adaptEnd_ >= 0 && step_ > adaptEnd_;
-  stop_         = adaptEnd_ >= 0 && step_ >= adaptEnd_ + adapt_.referenceSteps;
+  stop_         = adaptEnd_ >= 0 && (step_ >= adaptEnd_ + adapt_.referenceSteps || (row.reference && adapt_.referenceDofs > 0 && row.dofs >= adapt_.referenceDofs * rows[adaptEnd_].dofs));
   if (!stop_) {
     PetscCall(StageTimed(PetscObjectComm((PetscObject)mesh_), Stage::Adapt, row.markSeconds, [&] { return MarkDoerfler(comm, eta2, adapt_.theta, marked_, &row.marked); }));
     stop_ = row.marked == 0; // a zero estimate: nothing to refine

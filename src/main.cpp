@@ -153,6 +153,9 @@ static PetscErrorCode Run(MPI_Comm comm)
     PetscCall(PetscOptionsHasName(NULL, NULL, name, &given));
     if (given && !adaptive) SIGNORINI_INPUT_ERROR(comm, "option %s: applies to adaptive refinement only; give -adapt_steps K too", name);
   }
+  PetscBool referenceDofs;
+  PetscCall(PetscOptionsHasName(NULL, NULL, "-adapt_reference_dofs", &referenceDofs));
+  if (referenceDofs && s.adapt.referenceSteps == 0) SIGNORINI_INPUT_ERROR(comm, "option -adapt_reference_dofs: ends the reference steps early; give -adapt_reference_steps M too");
   // So would the options of a convergence study without one, and a study's own files are its table
   // (-study_output, -summary) and the profiles of its finest levels (-study_profiles), not -output.
   const bool study = s.study.levels > 0;

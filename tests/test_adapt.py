@@ -204,7 +204,9 @@ with tempfile.TemporaryDirectory() as tmp:
 # Bad input.
 for args, message in [(["-adapt_theta", "0"], "-adapt_theta"),
                       (["-study_levels", "2"], "options -adapt_steps and -study_levels"),
-                      (["-estimate", "none"], "adaptive refinement marks cells by the error estimate")]:
+                      (["-estimate", "none"], "adaptive refinement marks cells by the error estimate"),
+                      (["-adapt_reference_dofs", "8"], "-adapt_reference_dofs: ends the reference steps early; give -adapt_reference_steps"),
+                      (["-adapt_reference_steps", "2", "-adapt_reference_dofs", "-1"], "-adapt_reference_dofs")]:
     rc, out, err, _ = run(base + args, check=False)
     lines = [l for l in (out + err).splitlines() if l.startswith("signorini: error:")]
     c.check(rc == 1 and len(lines) == 1 and message in lines[0], "%s: one error line (%s)" % (" ".join(args), lines[0] if lines else "none"))

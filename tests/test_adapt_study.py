@@ -9,7 +9,8 @@
     redistribution, and none for the steps before it;
   - run/study on a small scene writes compare.csv/.json with both strategies and both elements and their
     fields, the two comparison plots and the adapted meshes; the adaptive run stops at the DOFs of the finest
-    uniform level; without an exact solution the adaptive errors are against the adaptive reference."""
+    uniform level; without an exact solution the adaptive errors are against the adaptive reference, which
+    ends at -adapt_reference_dofs times the run's last DOFs (2D and 3D); it lists only the files it wrote."""
 import csv
 import json
 import os
@@ -39,6 +40,15 @@ for element in ["p1", "cr"]:
     far = gaps[:len(rows) - 1 - M]
     c.check(max(far) <= 0.10, "%s: steps 0..%d (>= %d steps before the reference): reference error within %.1f %% of the exact error" % (element, len(far) - 1, M, 100 * max(far)))
     c.check(gaps[0] < gaps[-1], "%s: the gap shrinks with the distance to the reference (%.3f at step 0, %.3f at the step before it)" % (element, gaps[0], gaps[-1]))
+
+# -adapt_reference_dofs F: the reference steps end at the first mesh with F times the DOFs of the run's last
+# step, before the M steps (3D steps grow the mesh about 4 times, and 6 of them ran out of memory).
+F = 4
+_, _, _, s = run(scene("manufactured-2d") + ["-box_faces", "4", "-adapt_steps", str(K), "-adapt_reference_steps", str(M), "-adapt_reference_dofs", str(F), "-space", "cr"])
+rows, last = s["adapt"], s["adapt"][K]["dofs"]
+ref = [r["dofs"] for r in rows if r["reference_step"]]
+c.check(0 < len(ref) < M and all(d < F * last for d in ref[:-1]) and ref[-1] >= F * last and [r["dofs"] for r in rows[:K + 1]] == [r["dofs"] for r in one["cr"][:K + 1]],
+        "-adapt_reference_dofs %d: %d reference steps (of %d), the last the first with %d >= %d x %d DOFs; the same run before them" % (F, len(ref), M, ref[-1] if ref else 0, F, last))
 
 # 2 ranks: the same meshes, so the same errors where the parent chain is intact.
 _, _, _, s = run(base + ["-space", "cr", "-adapt_imbalance", "1.05"], ranks=2)
@@ -77,14 +87,30 @@ with tempfile.TemporaryDirectory() as tmp:
         c.check(all(a["seconds"] <= b["seconds"] for a, b in zip(ada, ada[1:])), "%s: the adaptive run time is cumulative (non-decreasing)" % element)
         c.check(all(abs(r["efficiency"] - r["eta"] / r["error"]) <= 1e-12 * r["efficiency"] for r in uni + ada), "%s: efficiency = eta / error in every row" % element)
 
-    # A scene without an exact solution: the adaptive errors against the adaptive reference.
-    out = os.path.join(tmp, "paper")
+    # A scene without an exact solution: the adaptive errors against the adaptive reference. In the folder of
+    # the study above, whose P1 files this one, with CR only, must not list as its own.
+    out = tmp
     p = subprocess.run([sys.executable, os.path.join(ROOT, "run", "study.py"), "paper-5.1", "-box_faces", "2", "-study_levels", "3", "-reference_refine", "1",
                         "-study_spaces", "cr", "--reference-steps", "3", "--out", out], capture_output=True, text=True, env=env)
     c.check(p.returncode == 0, "run/study paper-5.1 exit status %d %s" % (p.returncode, p.stderr[-300:]))
+    wrote = [l for l in p.stdout.splitlines() if l.startswith("wrote in")]
+    c.check(len(wrote) == 1 and "compare.json" in wrote[0] and "p1" not in wrote[0], "run/study lists the files it wrote, not the earlier study's: %r" % wrote)
     with open(os.path.join(out, "compare.json")) as f:
         rows = [r for r in json.load(f)["rows"] if r["strategy"] == "adaptive"]
     ref = [r for r in rows if r["reference_step"]]
     c.check(len(ref) == 3 and all(r["error_against"] == "adaptive reference" and r["error"] > 0 for r in rows[:-1]) and rows[-1]["error"] is None,
             "paper-5.1: %d adaptive rows against the adaptive reference, the last 3 steps for the reference" % len(rows))
+
+    # A 3D scene without an exact solution: the reference ends at -adapt_reference_dofs (run/compare.py's
+    # default), not after the 6 steps, which ran paper-5.1-3d P1 out of memory from 8 k DOFs.
+    out = os.path.join(tmp, "3d")
+    p = subprocess.run([sys.executable, os.path.join(ROOT, "run", "study.py"), "paper-5.1-3d", "-box_faces", "2", "-study_levels", "2", "-reference_refine", "1",
+                        "-study_spaces", "p1", "--out", out], capture_output=True, text=True, env=env)
+    c.check(p.returncode == 0, "run/study paper-5.1-3d exit status %d %s" % (p.returncode, p.stderr[-300:]))
+    with open(os.path.join(out, "compare.json")) as f:
+        rows = [r for r in json.load(f)["rows"] if r["strategy"] == "adaptive"]
+    last = [r["dofs"] for r in rows if not r["reference_step"]][-1]
+    ref = [r["dofs"] for r in rows if r["reference_step"]]
+    c.check(0 < len(ref) < 6 and ref[-1] >= 32 * last and all(d < 32 * last for d in ref[:-1]),
+            "paper-5.1-3d: %d reference steps, ending at %d >= 32 x %d DOFs" % (len(ref), ref[-1] if ref else 0, last))
 c.done()

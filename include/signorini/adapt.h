@@ -45,6 +45,10 @@ struct AdaptOptions {
   // six times the next solve's time at 131 k triangles).
   LocalRefinement refinement = LocalRefinement::BisectionAll;
   PetscInt  referenceSteps = 0; // -adapt_reference_steps: further steps whose last solution is the reference
+  // -adapt_reference_dofs: the reference steps end earlier, at the first mesh with this many times the DOFs
+  // of the run's last step (0: no such end). A step grows the mesh about 1.6 times in 2D but about 4 times
+  // in 3D, so that a number of steps right for one is, for the other, too few or beyond any memory.
+  PetscReal referenceDofs = 0;
   // -solve_to discretization (nested.h): every step after the first stops once its algebraic error is
   // estimated below this fraction of its discretization error, predicted from the estimate of the step
   // before (0: every step to the full test). Not for the reference steps.
