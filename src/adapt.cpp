@@ -4,6 +4,7 @@
 #include "signorini/localrefine.h"
 #include "signorini/mark.h"
 #include "signorini/options.h"
+#include "signorini/sizes.h"
 #include "signorini/stages.h"
 
 #include <algorithm>
@@ -132,6 +133,15 @@ PetscErrorCode AdaptiveRefinement::Refine()
   PetscCall(PetscTime(&t0));
   PetscCall(RefineMarked(mesh_, marked_, adapt_.refinement, &fine, &parent, &corners));
   PetscCall(SecondsSince(comm, t0, &row.refineSeconds));
+  if (adapt_.memoryCheck) { // the next solve's memory, where EndWhereMemoryEnds had no growth to predict it by
+    MeshCounts  counts;
+    bool        fits;
+    std::string need;
+    PetscCall(CountMesh(fine, counts));
+    const double dofs = Dofs(counts, prev_.space.element);
+    PetscCall(MemoryFits(comm, SolveBytes(counts.dim, prev_.space.element, dofs), adapt_.memoryLimit, fits, need));
+    if (!fits) SIGNORINI_INPUT_ERROR(comm, "adaptive step %d: the refined mesh has %.3g cells and %.3g DOFs, and %s; stop earlier (-adapt_max_dofs, -adapt_tol) or use more nodes, or -memory_check 0 to run anyway", (int)step_, counts.c, dofs, need.c_str());
+  }
 
   PetscCall(PetscTime(&t0));
   if (problem_.HasContact()) {
@@ -283,6 +293,7 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
   }
   row.reference = adaptEnd_ >= 0 && step_ > adaptEnd_;
   stop_         = adaptEnd_ >= 0 && (step_ >= adaptEnd_ + adapt_.referenceSteps || (row.reference && adapt_.referenceDofs > 0 && row.dofs >= adapt_.referenceDofs * rows[adaptEnd_].dofs));
+  if (!stop_ && adapt_.memoryCheck && step_ > 0) PetscCall(EndWhereMemoryEnds(m.space, row));
   if (!stop_) {
     PetscCall(StageTimed(PetscObjectComm((PetscObject)mesh_), Stage::Adapt, row.markSeconds, [&] { return MarkDoerfler(comm, eta2, adapt_.theta, marked_, &row.marked); }));
     stop_ = row.marked == 0; // a zero estimate: nothing to refine
@@ -320,6 +331,37 @@ PetscErrorCode AdaptiveRefinement::Solved(MeshSolution &&m)
   PetscCallMPI(MPI_Comm_size(comm, &size));
   cellsPerRank.assign(size, 0);
   PetscCallMPI(MPI_Allgather(&n, 1, MPIU_INT, cellsPerRank.data(), 1, MPIU_INT, comm));
+  PetscFunctionReturn(0);
+}
+
+// A step whose next mesh the memory of the nodes would not hold ends the run there, with this step as its
+// result (or ends its reference steps there), instead of the kernel's out-of-memory killer inside the next
+// refinement or solve (paper-5.1-3d P1 with 6 reference steps: killed at about 30 M DOFs). The next DOFs
+// are predicted by the largest growth of a step so far (3D steps grow the mesh 3 to 4 times, 2D ones 1.6
+// to 2; the marking changes little from step to step); at step 0 none is known, and Refine checks the mesh
+// it made instead.
+PetscErrorCode AdaptiveRefinement::EndWhereMemoryEnds(const Space &space, const AdaptRow &row)
+{
+  MPI_Comm    comm   = PetscObjectComm((PetscObject)mesh_);
+  double      growth = (double)row.dofs / (double)rows.back().dofs;
+  bool        fits;
+  std::string need;
+  PetscFunctionBeginUser;
+  for (size_t k = 1; k < rows.size(); ++k) growth = std::max(growth, (double)rows[k].dofs / (double)rows[k - 1].dofs);
+  const double next = growth * (double)row.dofs;
+  PetscCall(MemoryFits(comm, SolveBytes(space.dim, space.element, next), adapt_.memoryLimit, fits, need));
+  if (fits) PetscFunctionReturn(0);
+  stop_                  = true;
+  const std::string text = Format("the next mesh would have about %.3g DOFs (%d times %.3g, the largest growth of a step so far), and %s; -memory_check 0 goes on", next, (int)row.dofs, growth, need.c_str());
+  if (adaptEnd_ < 0) {
+    adaptEnd_ = step_;
+    ended     = "memory";
+    endedText = Format("ended at step %d of -adapt_steps %d: ", (int)step_, (int)adapt_.steps) + text;
+  } else {
+    const std::string what = step_ == adaptEnd_ ? Format("no reference step (-adapt_reference_steps %d)", (int)adapt_.referenceSteps)
+                                                : Format("reference steps ended at step %d (%d of -adapt_reference_steps %d)", (int)step_, (int)(step_ - adaptEnd_), (int)adapt_.referenceSteps);
+    endedText += (endedText.empty() ? "" : "; ") + what + ": " + text;
+  }
   PetscFunctionReturn(0);
 }
 

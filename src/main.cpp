@@ -231,6 +231,8 @@ static PetscErrorCode Run(MPI_Comm comm)
     ao.withMesh        = nullptr; // the output is begun on the last mesh, known once solved
     ao.keepMesh        = !s.output.file.empty();
     AdaptOptions adapt = s.adapt;
+    adapt.memoryCheck  = s.mesh.memoryCheck;
+    adapt.memoryLimit  = s.mesh.memoryLimit;
     if (s.nested.solveTo == NestedOptions::Discretization) adapt.solveToFraction = s.nested.fraction;
     AdaptiveRefinement strategy(mesh, s.problem, ao, adapt, s.errorDegree);
     if (nestedLevels) strategy.StartNested(levels, s.nested);

@@ -50,6 +50,7 @@ PetscErrorCode MeshOptionsFromCommandLine(MPI_Comm comm, MeshOptions &o)
   PetscCall(OptionInt(PetscOptionsObject, "-refine", "Uniform refinements in parallel after distribution", o.refine, 0, PETSC_MAX_INT));
   PetscCall(OptionEList(PetscOptionsObject, "-mesh_refinement", "How the mesh is refined: direct (the fine DMPlex built from the coarse one) or transform (PETSc's DMPlexTransform; the same mesh, slower)", {"direct", "transform"}, how));
   PetscCall(OptionBool(PetscOptionsObject, "-memory_check", "Refuse, before building anything, a run whose predicted peak memory exceeds the memory of the machine (per rank: its node's memory over the ranks on the node)", o.memoryCheck));
+  PetscCall(OptionReal(PetscOptionsObject, "-memory_limit", "Memory of each node in GB that the memory checks assume, e.g. a job's limit (0: the machine's, or its control group's limit)", o.memoryLimit, 0));
   PetscCall(OptionString(PetscOptionsObject, "-mesh_partitioner", "metis (libmetis on the coarse cell graph) or a PetscPartitioner type (ptscotch, simple)", o.partitioner));
   PetscOptionsEnd();
   o.diagonal   = (Diagonal)diag;

@@ -33,9 +33,11 @@ double           BytesPerDof(PetscInt dim, Element e)
   return kIndexWidthFactor * bytes;
 }
 
-// Physical memory of this node, or less where a control group limits this process.
-double NodeMemory()
+// Physical memory of this node, or less where a control group limits this process; -memory_limit instead
+// where given.
+double NodeMemory(double limitGB)
 {
+  if (limitGB > 0) return limitGB * 1e9;
   double bytes = (double)sysconf(_SC_PHYS_PAGES) * (double)sysconf(_SC_PAGE_SIZE);
   for (const char *file : {"/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory/memory.limit_in_bytes"}) {
     if (FILE *fp = std::fopen(file, "r")) {
@@ -134,8 +136,7 @@ double PeakBytes(const MeshCounts &m, Element e, double ranks) { return kFixedBy
 
 PetscErrorCode CheckSizes(MPI_Comm comm, const MeshOptions &o, const MeshCounts &coarse, Element element, const StudyOptions &study)
 {
-  PetscMPIInt size, nodeSize;
-  MPI_Comm    node;
+  PetscMPIInt size;
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_size(comm, &size));
   // The study refines its base mesh (this run's -refine) levels - 1 + reference_refine times more.
@@ -143,7 +144,7 @@ PetscErrorCode CheckSizes(MPI_Comm comm, const MeshOptions &o, const MeshCounts 
   const MeshCounts     finest = Refined(coarse, o.refine + extra);
   std::vector<Element> solved = {element};
   if (study.levels > 0) solved = study.referenceRefine > 0 ? std::vector<Element>{study.referenceElement} : study.elements;
-  double dofs = 0, nonzeros = 0, perRank = 0, variable = 0;
+  double dofs = 0, nonzeros = 0, variable = 0;
   for (Element e : solved) {
     dofs     = std::max(dofs, Dofs(finest, e));
     nonzeros = std::max(nonzeros, Nonzeros(finest, e));
@@ -151,7 +152,6 @@ PetscErrorCode CheckSizes(MPI_Comm comm, const MeshOptions &o, const MeshCounts 
   }
   if (study.levels > 0) // every level's mesh stays alive during the study
     for (PetscInt l = 0; l <= extra; ++l) variable += kIndexWidthFactor * kMeshBytesPerPoint * Refined(coarse, o.refine + l).Points();
-  perRank = kFixedBytes + variable / size;
 
   // 32-bit PetscInt indexes each rank's mesh points and cone arrays (the coarse mesh is on rank 0 before
   // it is distributed), the global DOFs, and each rank's matrix nonzeros.
@@ -159,22 +159,38 @@ PetscErrorCode CheckSizes(MPI_Comm comm, const MeshOptions &o, const MeshCounts 
   const double rankPoints = std::max(coarse.Points(), finest.Points() / size), rankCones = std::max(coarse.ConeEntries(), finest.ConeEntries() / size);
   const bool   indices    = sizeof(PetscInt) < 8 && (rankPoints > limit || rankCones > limit || dofs > limit || nonzeros / size > limit);
 
-  // Memory: each rank gets an equal share of its node; the job, the memory of all its nodes.
-  PetscCallMPI(MPI_Comm_split_type(comm, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node));
-  PetscCallMPI(MPI_Comm_size(node, &nodeSize));
-  PetscCallMPI(MPI_Comm_free(&node));
-  const double share = NodeMemory() / nodeSize;
-  double       total, minShare;
-  PetscCallMPI(MPI_Allreduce(&share, &total, 1, MPI_DOUBLE, MPI_SUM, comm));
-  PetscCallMPI(MPI_Allreduce(&share, &minShare, 1, MPI_DOUBLE, MPI_MIN, comm));
-  const bool memory = o.memoryCheck && (perRank > minShare || size * kFixedBytes + variable > total);
+  bool        fits = true;
+  std::string need;
+  if (o.memoryCheck) PetscCall(MemoryFits(comm, variable, o.memoryLimit, fits, need));
+  const bool memory = !fits;
+  need += "; use fewer refinements or more nodes, or -memory_check 0 to run anyway";
 
   const std::string mesh = Format("%s gives a finest mesh of %.3g cells with %.3g DOFs", Asked(o, study).c_str(), finest.c, dofs);
-  const std::string need = Format("it needs about %s of memory (%s per rank), more than the %s of the nodes of this run (%s per rank, %d rank(s) on a node); use fewer refinements or more nodes, or -memory_check 0 to run anyway", GB(size * kFixedBytes + variable).c_str(), GB(perRank).c_str(), GB(total).c_str(), GB(minShare).c_str(), (int)nodeSize);
   if (indices)
     SIGNORINI_INPUT_ERROR(comm, "sizes: %s, %.3g mesh points (%.3g cone entries) and %.3g matrix nonzeros per rank on %d rank(s), beyond the 32-bit indices of this PETSc build (at most %" PetscInt_FMT "); use fewer refinements, or the 64-bit PETSc build (Debian libpetsc64-real3.18-dev, cmake -DSIGNORINI_PETSC64=ON)%s", mesh.c_str(), rankPoints, rankCones, nonzeros / size, (int)size, PETSC_MAX_INT,
                           memory ? ("; also, " + need).c_str() : "");
   if (memory) SIGNORINI_INPUT_ERROR(comm, "sizes: %s; %s", mesh.c_str(), need.c_str());
+  PetscFunctionReturn(0);
+}
+
+double SolveBytes(PetscInt dim, Element e, double dofs) { return BytesPerDof(dim, e) * dofs; }
+
+PetscErrorCode MemoryFits(MPI_Comm comm, double variable, double limitGB, bool &fits, std::string &need)
+{
+  PetscMPIInt size, nodeSize;
+  MPI_Comm    node;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  // Each rank gets an equal share of its node; the job, the memory of all its nodes.
+  PetscCallMPI(MPI_Comm_split_type(comm, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node));
+  PetscCallMPI(MPI_Comm_size(node, &nodeSize));
+  PetscCallMPI(MPI_Comm_free(&node));
+  const double share = NodeMemory(limitGB) / nodeSize, perRank = kFixedBytes + variable / size;
+  double       total, minShare;
+  PetscCallMPI(MPI_Allreduce(&share, &total, 1, MPI_DOUBLE, MPI_SUM, comm));
+  PetscCallMPI(MPI_Allreduce(&share, &minShare, 1, MPI_DOUBLE, MPI_MIN, comm));
+  fits = !(perRank > minShare || size * kFixedBytes + variable > total);
+  need = Format("it needs about %s of memory (%s per rank), more than the %s of the nodes of this run (%s per rank, %d rank(s) on a node)", GB(size * kFixedBytes + variable).c_str(), GB(perRank).c_str(), GB(total).c_str(), GB(minShare).c_str(), (int)nodeSize);
   PetscFunctionReturn(0);
 }
 

@@ -14,6 +14,8 @@
   - -adapt_tol stops at the first step whose eta is below it, -adapt_max_dofs at the first mesh that has as
     many DOFs, and a zero estimate at once, each with a line that says so; -output writes the last mesh;
   - an option of the adaptive run (-adapt_tol, ...) without -adapt_steps is refused, not ignored;
+  - a next mesh beyond the memory of the nodes (-memory_limit) ends the run, or its reference steps, at the
+    step before it, with a line; at step 0 the refined mesh is refused in one line;
   - bad input: one clear line each."""
 import math
 import os
@@ -215,6 +217,29 @@ rc, out, err, _ = run(scene("manufactured-2d") + ["-adapt_tol", "0.01"], check=F
 lines = [l for l in (out + err).splitlines() if l.startswith("signorini: error:")]
 c.check(rc == 1 and len(lines) == 1 and "-adapt_tol" in lines[0] and "-adapt_steps" in lines[0] and "energy" not in out,
         "-adapt_tol without -adapt_steps: one error line before the solve (%s)" % (lines[0] if lines else "none"))
+# A next mesh beyond the memory (-memory_limit in GB per node stands in for a small machine) ends the run at the
+# step before it, with that step's result and a line that says why, instead of the out-of-memory killer in the
+# next solve; -memory_check 0 goes on. Predicted from the growth of the steps so far; at step 0, which has
+# none, the refined mesh itself is checked: one error line, on 1 and 2 ranks alike, and no summary.
+mem = scene("manufactured-2d") + ["-box_faces", "4", "-space", "p1", "-adapt_steps", "30"]
+rc, out, err, s = run(mem + ["-memory_limit", "0.06"], check=False)
+_, _, _, free = run(mem + ["-memory_limit", "0.06", "-memory_check", "0", "-adapt_steps", "14"])
+ended = [l for l in out.splitlines() if "adaptive refinement ended" in l]
+c.check(rc == 0 and s is not None and s["adapt_ended"] == "memory" and len(ended) == 1 and "-memory_check 0" in ended[0] and "0.06 GB" in ended[0],
+        "-memory_limit 0.06: the run ends for memory, with a line (%s)" % (ended[0] if ended else "none"))
+if s is not None:
+    k = len(s["adapt"]) - 1
+    c.check(3 < k < 14 and len(free["adapt"]) > k + 1 and [r["dofs"] for r in free["adapt"][:k + 1]] == [r["dofs"] for r in s["adapt"]] and s["dofs"] == s["adapt"][-1]["dofs"],
+            "-memory_limit 0.06: the result is step %d's, the steps before it as without the check, which goes on (%d steps)" % (k, len(free["adapt"])))
+rc, out, err, s = run(mem + ["-memory_limit", "0.06", "-adapt_max_dofs", "2000", "-adapt_reference_steps", "6"], check=False)
+ref = [r for r in (s or {}).get("adapt", []) if r["reference_step"]]
+c.check(rc == 0 and s["adapt_ended"] == "max_dofs" and 0 < len(ref) < 6 and "reference steps ended at step" in out,
+        "-memory_limit 0.06 -adapt_reference_steps 6: the reference ends early, after %d steps, and says so" % len(ref))
+for ranks, limit in [(1, "0.06"), (2, "0.11")]:
+    rc, out, err, s = run(scene("manufactured-2d") + ["-box_faces", "64", "-space", "p1", "-adapt_steps", "2", "-adapt_theta", "1", "-memory_limit", limit], ranks=ranks, check=False)
+    lines = sorted(set(l for l in (out + err).splitlines() if l.startswith("signorini: error:")))
+    c.check(rc != 0 and len(lines) == 1 and "adaptive step 1: the refined mesh has" in lines[0] and "-memory_check 0" in lines[0] and s is None,
+            "%d rank(s), -adapt_theta 1 -memory_limit %s: step 1's mesh refused in one line, no summary (%s)" % (ranks, limit, lines[0] if lines else "none"))
 # sbr refines triangles only: refused on a tetrahedral mesh before anything is solved (no summary line).
 rc, out, err, _ = run(scene("manufactured-3d") + ["-adapt_steps", "1", "-adapt_refinement", "sbr"], check=False)
 lines = [l for l in (out + err).splitlines() if l.startswith("signorini: error:")]

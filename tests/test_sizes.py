@@ -2,7 +2,8 @@
 of the PETSc build, or whose predicted peak exceeds the machine's memory, stops with exit status 1 and one
 line naming the option that sets the size (and, for indices, the 64-bit PETSc build) before anything is
 built. The runs are made under an address-space limit of 4 GB, so a run that started building the mesh
-could not end with that line; no file is created in the working directory; a size that fits still runs."""
+could not end with that line; no file is created in the working directory; a size that fits still runs;
+-memory_limit sets the memory of a node in place of the machine's."""
 import os
 import resource
 import tempfile
@@ -62,6 +63,12 @@ c.check("memory" not in out, "-refine 12 -memory_check 0: the line does not spea
 refused(B + ["-refine", "10"], ["-refine 10", "-memory_check 0"], False)
 refused(B + ["-refine", "10"], ["-refine 10", "-memory_check 0"], False, ranks=2)
 refused(B + ["-refine", "7", "-study_levels", "3", "-reference_refine", "1"], ["-study_levels 3", "-reference_refine 1"], False)
+# -memory_limit (GB per node) in place of the machine's memory: box 8 -refine 5 (CR, 197 k DOFs, about 0.17 GB
+# on 1 rank) is refused under 0.15 GB, on 1 and 2 ranks, and runs under 0.3 GB.
+refused(B + ["-refine", "5", "-memory_limit", "0.15"], ["-refine 5", "0.15 GB", "-memory_check 0"], False)
+refused(B + ["-refine", "5", "-memory_limit", "0.15"], ["-refine 5", "0.15 GB", "-memory_check 0"], False, ranks=2)
+rc, out, files = run(B + ["-refine", "5", "-memory_limit", "0.3"])
+c.check(rc == 0 and "run.json" in files, "box 8 -refine 5 -memory_limit 0.3 runs (exit %d)" % rc)
 
 # A size that fits runs.
 rc, out, files = run(B + ["-refine", "2"])

@@ -49,6 +49,10 @@ struct AdaptOptions {
   // of the run's last step (0: no such end). A step grows the mesh about 1.6 times in 2D but about 4 times
   // in 3D, so that a number of steps right for one is, for the other, too few or beyond any memory.
   PetscReal referenceDofs = 0;
+  // -memory_check, -memory_limit (mesh.h): a step whose next mesh would not fit the memory ends the run (or
+  // its reference steps) there (see AdaptiveRefinement::NextStepFits)
+  bool   memoryCheck = true;
+  double memoryLimit = 0;
   // -solve_to discretization (nested.h): every step after the first stops once its algebraic error is
   // estimated below this fraction of its discretization error, predicted from the estimate of the step
   // before (0: every step to the full test). Not for the reference steps.
@@ -106,6 +110,7 @@ private:
   PetscErrorCode Refine(); // the marked cells of mesh_, the solution carried to the new mesh_
   PetscErrorCode ReferenceErrors(const MeshSolution &ref); // of the kept solutions (-adapt_reference_steps)
   PetscErrorCode SolveToDiscretization(PipelineOptions &o) const; // the stopping bound of -solve_to discretization
+  PetscErrorCode EndWhereMemoryEnds(const Space &space, const AdaptRow &row); // stop_ where the next mesh would not fit
 
   DM                mesh_; // the mesh of the step under way
   const Problem    &problem_;

@@ -33,6 +33,7 @@ struct MeshOptions {
   bool        coarsen    = true;    // -box_coarsen: build the box through a coarser box (see CoarsenBox)
   PetscInt    coarsened  = 0;       // how many of the refinements make the box asked for from `faces`
   bool        memoryCheck = true;   // -memory_check: refuse a run predicted not to fit (see sizes.h)
+  double      memoryLimit = 0;      // -memory_limit: GB per node the check assumes (0: the machine's)
   std::string partitioner = "metis"; // "metis" or any PetscPartitioner type (ptscotch, simple, ...)
   Refinement  refinement = Refinement::Direct;
 };

@@ -42,4 +42,11 @@ double PeakBytes(const MeshCounts &m, Element e, double ranks);
 // Raises a one-line input error on every rank.
 PetscErrorCode CheckSizes(MPI_Comm comm, const MeshOptions &o, const MeshCounts &coarse, Element element, const StudyOptions &study);
 
+// The memory a solve adds per its DOFs (summed over the ranks), beyond the fixed part of every rank.
+double SolveBytes(PetscInt dim, Element e, double dofs);
+// Collective: whether `variable` bytes (summed over the ranks, shared equally) and the fixed part of every
+// rank fit the memory of the nodes of `comm` (limitGB > 0: -memory_limit, per node, instead of the
+// machine's); need: how much, against what, for a message.
+PetscErrorCode MemoryFits(MPI_Comm comm, double variable, double limitGB, bool &fits, std::string &need);
+
 } // namespace signorini
