@@ -50,7 +50,7 @@ struct AdaptOptions {
   // in 3D, so that a number of steps right for one is, for the other, too few or beyond any memory.
   PetscReal referenceDofs = 0;
   // -memory_check, -memory_limit (mesh.h): a step whose next mesh would not fit the memory ends the run (or
-  // its reference steps) there (see AdaptiveRefinement::NextStepFits)
+  // its reference steps) there (see AdaptiveRefinement::EndWhereMemoryEnds)
   bool   memoryCheck = true;
   double memoryLimit = 0;
   // -solve_to discretization (nested.h): every step after the first stops once its algebraic error is
