@@ -31,7 +31,7 @@ import subprocess
 import sys
 
 import launch
-from launch import ROOT, list_option
+from launch import ROOT, count, list_option
 
 STAGES = ["mesh", "distribute", "refine", "setup", "assemble", "solve"]
 SETUP = ["mesh", "distribute", "refine", "setup", "assemble"]
@@ -108,7 +108,7 @@ def run_once(dim, element, N, ranks, out_dir, extra, preset, suffix):
     # PETSc's own malloc peak next to the peak RSS; it also reports any PETSc object the run leaks.
     s = launch.run_kept(args + ["-compare_linear", "-malloc_dump"] + list(extra), ranks, out_dir, tag)
     if s is None:
-        return {"scene": scene, "dim": dim, "element": element, "N": N, "ranks": ranks, "preset": preset, "status": "failed"}
+        return {"scene": scene, "dim": dim, "element": element, "N": N, "ranks": ranks, "preset": os.path.basename(preset) if preset else "default", "status": "failed"}
     return row_from_summary(s, dim, element, N, ranks, preset)
 
 
@@ -255,24 +255,22 @@ def main():
     ap.add_argument("--elements", default="p1,cr")
     ap.add_argument("--n2", default="256,512,1024,2048", help="2D cells per side")
     ap.add_argument("--n3", default="12,24,48,96", help="3D cells per side")
-    ap.add_argument("--ranks", type=int, default=1)
+    ap.add_argument("--ranks", type=count, default=1)
     ap.add_argument("--presets", action="store_true", help="also run each petsc-options/solvers preset on a mid-size mesh")
     ap.add_argument("--quick", action="store_true", help="small sizes only")
     ap.add_argument("--out", default=os.path.join(ROOT, "results", "bench"))
-    ap.add_argument("--repeat", type=int, default=1, help="run each case this many times and report medians (times, VI/linear) and the largest memory")
+    ap.add_argument("--repeat", type=count, default=1, help="run each case this many times and report medians (times, VI/linear) and the largest memory")
     ap.add_argument("--no-warm-memory", action="store_true", help="do not touch the free memory once before the runs (see warm_memory)")
     ap.add_argument("--peer", choices=["dolfinx"], help="instead: whole process against dolfinx on the same scene and mesh (run/peer.py: --peer-elements, --peer-n2, --peer-n3)")
     ap.add_argument("--error", action="store_true", help="instead: the exact-error integration against the solve on the manufactured scenes")
     ap.add_argument("--estimate", action="store_true", help="instead: the estimate's cost and the adaptive overhead per step, as ratios to the solve of the same run (run/bench_estimate.py: --est-n2, --est-n3, --adapt-n2, --adapt-n3, --est-p1-n2, --est-p1-n3, --adapt-p1-n2, --adapt-p1-n3, --adapt-steps)")
     ap.add_argument("--nohier", action="store_true", help="instead: contact solve / linear solve on a fine Gmsh file read without -refine (run/bench_nohier.py: --nohier-n2)")
     args, extra = ap.parse_known_args()
-    if args.repeat < 1:
-        ap.error("--repeat: %d is not a positive count" % args.repeat)
     if args.quick:
         args.n2, args.n3 = "64,128", "12,24"
     dims = list_option(ap, "--dims", args.dims, [2, 3], int)
     elements = list_option(ap, "--elements", args.elements, ["p1", "cr"])
-    sizes = {2: list_option(ap, "--n2", args.n2, convert=int), 3: list_option(ap, "--n3", args.n3, convert=int)}
+    sizes = {2: list_option(ap, "--n2", args.n2, convert=count), 3: list_option(ap, "--n3", args.n3, convert=count)}
     os.makedirs(args.out, exist_ok=True)
     if not args.no_warm_memory:
         warm_memory()
@@ -308,9 +306,10 @@ def main():
     print("\nsummary (%d rank%s; times in seconds from the -log_view stages%s):" % (args.ranks, "s" if args.ranks > 1 else "", "; medians of %d runs each" % args.repeat if args.repeat > 1 else ""))
     print_table(rows)
     print_targets(rows)
-    write_csv(rows, os.path.join(args.out, "bench.csv"))
-    plot(rows, os.path.join(args.out, "time-per-dof.png"))
-    print("\nwrote %s and %s" % (os.path.join(args.out, "bench.csv"), os.path.join(args.out, "time-per-dof.png")))
+    if not launch.nothing_succeeded(rows, args.out, ["bench.csv", "time-per-dof.png"]):
+        write_csv(rows, os.path.join(args.out, "bench.csv"))
+        plot(rows, os.path.join(args.out, "time-per-dof.png"))
+        print("\nwrote %s and %s" % (os.path.join(args.out, "bench.csv"), os.path.join(args.out, "time-per-dof.png")))
     return 1 if any(r["status"] != "ok" for r in rows) else 0
 
 

@@ -92,15 +92,15 @@ def write_csv(rows, path):
 
 def main(bench_args, extra):
     ap = argparse.ArgumentParser(prog="run/bench --estimate")
-    ap.add_argument("--est-n2", type=int, default=None, help="2D cells per side of the estimate runs (default 1024, --quick 128)")
-    ap.add_argument("--est-n3", type=int, default=None, help="3D cells per side of the estimate runs (default 48, --quick 12)")
-    ap.add_argument("--adapt-n2", type=int, default=None, help="2D cells per side of the first adaptive mesh (default 512, --quick 64)")
-    ap.add_argument("--adapt-n3", type=int, default=None, help="3D cells per side of the first adaptive mesh (default 48, --quick 12)")
-    ap.add_argument("--est-p1-n2", type=int, default=None, help="2D cells per side of P1's estimate run (default 1024, --quick 128)")
-    ap.add_argument("--est-p1-n3", type=int, default=None, help="3D cells per side of P1's estimate run (default 100, --quick 24)")
-    ap.add_argument("--adapt-p1-n2", type=int, default=None, help="2D cells per side of P1's first adaptive mesh (default 1024, --quick 128)")
-    ap.add_argument("--adapt-p1-n3", type=int, default=None, help="3D cells per side of P1's first adaptive mesh (default 80, --quick 24)")
-    ap.add_argument("--adapt-steps", type=int, default=None, help="adaptive refinements (default 3 in 2D, 2 in 3D; --quick 1)")
+    ap.add_argument("--est-n2", type=launch.count, default=None, help="2D cells per side of the estimate runs (default 1024, --quick 128)")
+    ap.add_argument("--est-n3", type=launch.count, default=None, help="3D cells per side of the estimate runs (default 48, --quick 12)")
+    ap.add_argument("--adapt-n2", type=launch.count, default=None, help="2D cells per side of the first adaptive mesh (default 512, --quick 64)")
+    ap.add_argument("--adapt-n3", type=launch.count, default=None, help="3D cells per side of the first adaptive mesh (default 48, --quick 12)")
+    ap.add_argument("--est-p1-n2", type=launch.count, default=None, help="2D cells per side of P1's estimate run (default 1024, --quick 128)")
+    ap.add_argument("--est-p1-n3", type=launch.count, default=None, help="3D cells per side of P1's estimate run (default 100, --quick 24)")
+    ap.add_argument("--adapt-p1-n2", type=launch.count, default=None, help="2D cells per side of P1's first adaptive mesh (default 1024, --quick 128)")
+    ap.add_argument("--adapt-p1-n3", type=launch.count, default=None, help="3D cells per side of P1's first adaptive mesh (default 80, --quick 24)")
+    ap.add_argument("--adapt-steps", type=launch.count, default=None, help="adaptive refinements (default 3 in 2D, 2 in 3D; --quick 1)")
     args, extra = ap.parse_known_args(extra)
     quick = bench_args.quick
     n = {("cr", 2): args.est_n2 or (128 if quick else 1024), ("cr", 3): args.est_n3 or (12 if quick else 48),
@@ -129,7 +129,8 @@ def main(bench_args, extra):
         text = "%-3s %-4s %5d %4d %10d %9.3f" % ("%dD" % r["dim"], r["element"], r["N"], r["step"], r["dofs"], r["solve_s"])
         text += "".join("%9.3f" % r[k + "_s"] for k in OVERHEAD) + " %9.3f  " % r["overhead_s"]
         print(text + verdict(r["ratio"], ADAPT_TARGET, r["dofs"] >= MIN_DOFS))
-    write_csv(est, os.path.join(bench_args.out, "estimate-cost.csv"))
-    write_csv(ada, os.path.join(bench_args.out, "adapt-overhead.csv"))
-    print("\nwrote %s and %s" % (os.path.join(bench_args.out, "estimate-cost.csv"), os.path.join(bench_args.out, "adapt-overhead.csv")))
+    if not launch.nothing_succeeded(est + ada, bench_args.out, ["estimate-cost.csv", "adapt-overhead.csv"]):
+        write_csv(est, os.path.join(bench_args.out, "estimate-cost.csv"))
+        write_csv(ada, os.path.join(bench_args.out, "adapt-overhead.csv"))
+        print("\nwrote %s and %s" % (os.path.join(bench_args.out, "estimate-cost.csv"), os.path.join(bench_args.out, "adapt-overhead.csv")))
     return 1 if any(r["status"] != "ok" for r in est + ada) else 0

@@ -68,6 +68,8 @@ def main(bench_args, extra):
             continue
         print("%-4s %5d %10d %6d %5d %6d %6d %9.3f %9.3f  %.2f %s %g" % (r["element"], r["N"], r["dofs"], r["newton"], r["ksp"], r["amg_setups"], r["amg_reuses"],
                                                                        r["solve_s"], r["linear_s"], r["ratio"], "<=" if r["ratio"] <= TARGET else ">", TARGET))
+    if launch.nothing_succeeded(rows, bench_args.out, ["nohier.csv"]):
+        return 1
     path = os.path.join(bench_args.out, "nohier.csv")
     keys = ["element", "N", "dofs", "newton", "ksp", "amg_setups", "amg_reuses", "solve_s", "linear_s", "ratio", "energy", "repeats", "status"]
     with open(path + ".tmp", "w", newline="") as f:

@@ -21,6 +21,7 @@ import sys
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
+import launch  # noqa: E402 (after the path to run/)
 
 PAPER_SLOPES = {("p1", "l2"): 1.89, ("cr", "l2"): 2.10, ("p1", "h1"): 0.98, ("cr", "h1"): 1.02}
 
@@ -64,7 +65,7 @@ def adaptive(study, options, out, ranks):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--ranks", type=int, default=1)
+    ap.add_argument("--ranks", type=launch.count, default=1)
     args, extra = ap.parse_known_args()
     from study import run_study
 

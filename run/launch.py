@@ -3,6 +3,7 @@ and the JSON summary the run writes. Standard library only, so that the tests ru
 
   SIGNORINI_EXE      the executable (default build/signorini)
   SIGNORINI_MPIEXEC  the MPI launcher, with its own arguments (default "mpirun")"""
+import argparse
 import json
 import os
 import shlex
@@ -20,6 +21,27 @@ MPIEXEC = os.environ.get("SIGNORINI_MPIEXEC", "mpirun")
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMPI_MCA_rmaps_base_oversubscribe="1")
 
 
+def count(text):
+    """argparse type of a count (ranks, cells per side, steps, repeats): an integer of at least 1. A 0 ran
+    `run/bench --n2 0` into a traceback and `--ranks 0` into runs on one rank that said nothing of it."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError("'%s' is not an integer" % text)
+    if value < 1:
+        raise argparse.ArgumentTypeError("%d is not a positive count" % value)
+    return value
+
+
+def nothing_succeeded(rows, out_dir, names):
+    """Whether every run of a benchmark failed (rows with "status"); if so, says that its files `names` in
+    out_dir are left as they were: a table of failures and an empty plot would replace the last results."""
+    if any(r.get("status") == "ok" for r in rows):
+        return False
+    print("\nno run succeeded: %s in %s left as they were" % (", ".join(names), out_dir))
+    return True
+
+
 def list_option(ap, option, text, allowed=None, convert=str):
     """The comma-separated values of a script's option, each converted and, where `allowed` is given, one of
     them; none twice and at least one, or an argparse error naming the option (exit 2): a mistyped value
@@ -29,6 +51,8 @@ def list_option(ap, option, text, allowed=None, convert=str):
         item = item.strip()
         try:
             value = convert(item)
+        except argparse.ArgumentTypeError as e:
+            ap.error("%s %s: %s" % (option, text, e))
         except ValueError:
             ap.error("%s %s: '%s' is not a valid value" % (option, text, item))
         if allowed is not None and value not in allowed:

@@ -108,8 +108,8 @@ def print_rows(rows):
 def main(bench_args, extra):
     ap = argparse.ArgumentParser(prog="run/bench --peer dolfinx")
     ap.add_argument("--peer-elements", default="cr", help="elements to compare (cr,p1)")
-    ap.add_argument("--peer-n2", type=int, default=None, help="2D cells per side (default 1024, --quick 128)")
-    ap.add_argument("--peer-n3", type=int, default=None, help="3D cells per side (default 64: about as many CR DOFs as 2D N = 1024; --quick 16)")
+    ap.add_argument("--peer-n2", type=launch.count, default=None, help="2D cells per side (default 1024, --quick 128)")
+    ap.add_argument("--peer-n3", type=launch.count, default=None, help="3D cells per side (default 64: about as many CR DOFs as 2D N = 1024; --quick 16)")
     args = ap.parse_args(extra)
     n2 = args.peer_n2 or (128 if bench_args.quick else 1024)
     n3 = args.peer_n3 or (16 if bench_args.quick else 64)

@@ -22,7 +22,7 @@ import sys
 
 import launch
 from bench import SETUP, mesh_args, save_png, warm_memory
-from launch import ROOT, list_option
+from launch import ROOT, count, list_option
 
 
 def mpiexec(args):
@@ -185,11 +185,11 @@ def print_target(results):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--ranks", help="comma-separated rank counts (default 1, 2, 4, ... up to --max-ranks)")
-    ap.add_argument("--max-ranks", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--max-ranks", type=count, default=os.cpu_count() or 1)
     ap.add_argument("--dim", type=int, default=2, choices=(2, 3))
     ap.add_argument("--element", default="cr", choices=("cr", "p1"))
-    ap.add_argument("--strong-n", type=int, help="cells per side of the strong-scaling mesh (default 2048 in 2D, 96 in 3D)")
-    ap.add_argument("--weak-n", type=int, help="cells per side of each rank's unit square/cube (default 512 in 2D, 48 in 3D)")
+    ap.add_argument("--strong-n", type=count, help="cells per side of the strong-scaling mesh (default 2048 in 2D, 96 in 3D)")
+    ap.add_argument("--weak-n", type=count, help="cells per side of each rank's unit square/cube (default 512 in 2D, 48 in 3D)")
     ap.add_argument("--kind", default="strong,weak")
     ap.add_argument("--mpiexec", default=os.environ.get("MPIEXEC", "mpirun"))
     ap.add_argument("--mpiexec-args", default="")
@@ -199,7 +199,7 @@ def main():
     args, extra = ap.parse_known_args()
     args.kind = list_option(ap, "--kind", args.kind, ["strong", "weak"])
     if args.ranks:
-        args.ranks = list_option(ap, "--ranks", args.ranks, convert=int)
+        args.ranks = list_option(ap, "--ranks", args.ranks, convert=count)
     else:
         args.ranks = [1]
         while args.ranks[-1] * 2 <= args.max_ranks:
@@ -224,6 +224,8 @@ def main():
         print("memory bandwidth (CG + BoomerAMG) can reach on this machine; efficiencies above it come from work that is not.")
         print_target(results)
     rows = [r for rs in results.values() for r in rs]
+    if launch.nothing_succeeded(rows, args.out, ["scaling.csv", "scaling.png"]):
+        return 1
     write_csv(rows, os.path.join(args.out, "scaling.csv"))
     plot(results, os.path.join(args.out, "scaling.png"), title)
     print("\nwrote %s, %s and each run's -log_view (*.log) in %s" % (os.path.join(args.out, "scaling.csv"), os.path.join(args.out, "scaling.png"), args.out))

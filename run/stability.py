@@ -750,7 +750,7 @@ def print_table(rows):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--ranks", type=int, default=2, help="MPI ranks per run (default 2)")
+    ap.add_argument("--ranks", type=launch.count, default=2, help="MPI ranks per run (default 2)")
     ap.add_argument("--csv", default=os.path.join(ROOT, "results", "stability.csv"))
     ap.add_argument("--only", default="", help="run only the groups whose name contains this text: contrast, "
                     "contrast-estimate, stretched, psi, load, obstacle, critical, below-h2, finest")

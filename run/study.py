@@ -85,9 +85,9 @@ def write_csv(study, path):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("scene", help="options file in petsc-options/")
-    ap.add_argument("--ranks", type=int, default=1)
+    ap.add_argument("--ranks", type=launch.count, default=1)
     ap.add_argument("--out", default=None, help="output folder (default results/SCENE)")
-    ap.add_argument("--adapt-steps", type=int, default=None, help="adaptive steps (default: until the DOFs of the finest uniform level)")
+    ap.add_argument("--adapt-steps", type=launch.count, default=None, help="adaptive steps (default: until the DOFs of the finest uniform level)")
     ap.add_argument("--theta", type=float, default=None, help="Doerfler parameter of the adaptive run (-adapt_theta)")
     ap.add_argument("--reference-steps", type=int, default=None,
                     help="steps beyond the adaptive run for its reference (default: none with an exact solution, else %d)" % compare.REFERENCE_STEPS)

@@ -3,7 +3,8 @@
 - --repeat 3: three runs per case, each kept; each row holds the median of every time and of the three
   ratios and the largest peak memory, recomputed here from the three JSON files;
 - bench.csv and time-per-dof.png are written, no *.tmp file is left; --repeat 0, an unknown element or
-  dimension, a repeated one, a size that is no number are clear usage errors before any run;
+  dimension, a repeated one, a size or rank count that is no positive integer are clear usage errors
+  before any run; where every run fails, the last results are left as they were (exit 1);
 - --estimate: each estimate / solve ratio is that of its run's Estimate and Solve stages, and each adaptive
   step's overhead / solve is that of the run's "adapt" row (estimate + mark + refine + redistribute + transfer);
 - --error --quick: each error / solve ratio is that of its run's Error and Solve stages;
@@ -132,7 +133,21 @@ with tempfile.TemporaryDirectory() as tmp:
     c.check(p.returncode == 2 and "--repeat: 0 is not a positive count" in p.stderr, "--repeat 0: exit %d, %s" % (p.returncode, p.stderr.strip().splitlines()[-1:]))
     # a mistyped list value ran nothing, or failed half-way with a traceback, and wrote a table: now refused first
     for args, message in [(["--elements", "q1"], "--elements q1: 'q1' is not one of p1, cr"), (["--dims", "4"], "--dims 4: '4' is not one of 2, 3"),
-                          (["--elements", "cr,cr"], "'cr' is given twice"), (["--n2", "32,x"], "--n2 32,x: 'x' is not a valid value")]:
+                          (["--elements", "cr,cr"], "'cr' is given twice"), (["--n2", "32,x"], "--n2 32,x: 'x' is not an integer"),
+                          (["--n2", "32,0"], "--n2 32,0: 0 is not a positive count"), (["--ranks", "0"], "--ranks: 0 is not a positive count"),
+                          (["--estimate", "--est-n2", "-4"], "--est-n2: -4 is not a positive count")]:
         p = bench(tmp, *args)
         c.check(p.returncode == 2 and message in p.stderr and not os.listdir(tmp), "%s: exit %d, %s, nothing written" % (" ".join(args), p.returncode, p.stderr.strip().splitlines()[-1:]))
+
+# Every run failed (kappa < 0): exit 1 and the last results left as they were, not replaced by a table of
+# failures and an empty plot; so for --estimate and --nohier.
+for mode, files in [([], ["bench.csv", "time-per-dof.png"]), (["--estimate", "--quick"], ["estimate-cost.csv", "adapt-overhead.csv"]),
+                    (["--nohier", "--quick"], ["nohier.csv"])]:
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in files:
+            with open(os.path.join(tmp, name), "w") as f:
+                f.write("earlier results\n")
+        p = bench(tmp, *(mode + ["-kappa", "-1"]))
+        kept = all(open(os.path.join(tmp, name)).read() == "earlier results\n" for name in files)
+        c.check(p.returncode == 1 and kept and "no run succeeded" in p.stdout, "%s with every run failing: exit %d, %s left as they were: %s" % (" ".join(mode) or "bench", p.returncode, ", ".join(files), kept))
 c.done()

@@ -46,4 +46,13 @@ with tempfile.TemporaryDirectory() as tmp:
     p = subprocess.run([sys.executable, os.path.join(ROOT, "run", "scaling.py"), "--kind", "strog", "--ranks", "1", "--no-warm-memory", "--out", tmp], capture_output=True, text=True, env=ENV)
     c.check(p.returncode == 2 and "--kind strog: 'strog' is not one of strong, weak" in p.stderr and not os.listdir(tmp),
             "--kind strog: exit %d, %s, nothing written" % (p.returncode, p.stderr.strip().splitlines()[-1:]))
+# Every run failed (kappa < 0): exit 1, the last table and plot left as they were.
+with tempfile.TemporaryDirectory() as tmp:
+    for name in ["scaling.csv", "scaling.png"]:
+        with open(os.path.join(tmp, name), "w") as f:
+            f.write("earlier results\n")
+    p = subprocess.run([sys.executable, os.path.join(ROOT, "run", "scaling.py"), "--ranks", "1,2", "--strong-n", "32", "--weak-n", "16", "--no-warm-memory", "--no-stream",
+                        "--out", tmp, "-kappa", "-1"], capture_output=True, text=True, env=ENV)
+    kept = all(open(os.path.join(tmp, name)).read() == "earlier results\n" for name in ["scaling.csv", "scaling.png"])
+    c.check(p.returncode == 1 and kept and "no run succeeded" in p.stdout, "every run failing: exit %d, scaling.csv and scaling.png left as they were: %s" % (p.returncode, kept))
 c.done()
