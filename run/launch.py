@@ -21,16 +21,37 @@ MPIEXEC = os.environ.get("SIGNORINI_MPIEXEC", "mpirun")
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMPI_MCA_rmaps_base_oversubscribe="1")
 
 
-def count(text):
-    """argparse type of a count (ranks, cells per side, steps, repeats): an integer of at least 1. A 0 ran
-    `run/bench --n2 0` into a traceback and `--ranks 0` into runs on one rank that said nothing of it."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError("'%s' is not an integer" % text)
-    if value < 1:
-        raise argparse.ArgumentTypeError("%d is not a positive count" % value)
-    return value
+def integer_from(low):
+    """argparse type of an integer of at least `low`."""
+    def convert(text):
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError("'%s' is not an integer" % text)
+        if value < low:
+            raise argparse.ArgumentTypeError("%d is not a positive count" % value if low == 1 else "%d is below %d" % (value, low))
+        return value
+    return convert
+
+
+# The argparse type of a count (ranks, cells per side, steps, repeats). A 0 ran `run/bench --n2 0` into a
+# traceback and `--ranks 0` into runs on one rank that said nothing of it.
+count = integer_from(1)
+
+
+def number_in(low, high=float("inf"), low_open=False):
+    """argparse type of a real number in [low, high] ((low, high] with low_open): checked before any run, where
+    signorini would refuse it only in the run that uses it, after the others (run/study --theta 0: after the
+    whole uniform study)."""
+    def convert(text):
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError("'%s' is not a number" % text)
+        if not (low < value <= high if low_open else low <= value <= high):
+            raise argparse.ArgumentTypeError("%s is not in %s%g, %g]" % (text, "(" if low_open else "[", low, high))
+        return value
+    return convert
 
 
 def nothing_succeeded(rows, out_dir, names):

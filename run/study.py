@@ -88,10 +88,10 @@ def main():
     ap.add_argument("--ranks", type=launch.count, default=1)
     ap.add_argument("--out", default=None, help="output folder (default results/SCENE)")
     ap.add_argument("--adapt-steps", type=launch.count, default=None, help="adaptive steps (default: until the DOFs of the finest uniform level)")
-    ap.add_argument("--theta", type=float, default=None, help="Doerfler parameter of the adaptive run (-adapt_theta)")
-    ap.add_argument("--reference-steps", type=int, default=None,
+    ap.add_argument("--theta", type=launch.number_in(0, 1, low_open=True), default=None, help="Doerfler parameter of the adaptive run (-adapt_theta)")
+    ap.add_argument("--reference-steps", type=launch.integer_from(0), default=None,
                     help="steps beyond the adaptive run for its reference (default: none with an exact solution, else %d)" % compare.REFERENCE_STEPS)
-    ap.add_argument("--reference-dofs", type=float, default=compare.REFERENCE_DOFS,
+    ap.add_argument("--reference-dofs", type=launch.number_in(0), default=compare.REFERENCE_DOFS,
                     help="the reference ends earlier, at the first mesh with this many times the DOFs of the run's last step (0: no such end; default %g)" % compare.REFERENCE_DOFS)
     args, options = ap.parse_known_args()
     out = args.out or os.path.join(ROOT, "results", args.scene)

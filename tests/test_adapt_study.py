@@ -113,4 +113,15 @@ with tempfile.TemporaryDirectory() as tmp:
     ref = [r["dofs"] for r in rows if r["reference_step"]]
     c.check(0 < len(ref) < 6 and ref[-1] >= 32 * last and all(d < 32 * last for d in ref[:-1]),
             "paper-5.1-3d: %d reference steps, ending at %d >= 32 x %d DOFs" % (len(ref), ref[-1] if ref else 0, last))
+
+# run/study's own options, checked before the uniform study runs (--theta 0 failed only in the adaptive run
+# after it): usage errors, exit 2, nothing written.
+for args, message in [(["--theta", "0"], "--theta: 0 is not in (0, 1]"), (["--reference-dofs", "-1"], "--reference-dofs: -1 is not in [0, inf]"),
+                      (["--reference-steps", "2.5"], "--reference-steps: '2.5' is not an integer"), (["--ranks", "0"], "--ranks: 0 is not a positive count"),
+                      (["--adapt-steps", "0"], "--adapt-steps: 0 is not a positive count")]:
+    with tempfile.TemporaryDirectory() as tmp:
+        out = os.path.join(tmp, "out")
+        p = subprocess.run([sys.executable, os.path.join(ROOT, "run", "study.py"), "paper-5.1", "-study_levels", "2", "--out", out] + args,
+                           capture_output=True, text=True, env=env)
+        c.check(p.returncode == 2 and message in p.stderr and not os.path.exists(out), "run/study %s: exit %d, %s, nothing written" % (" ".join(args), p.returncode, p.stderr.strip().splitlines()[-1:]))
 c.done()
