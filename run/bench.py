@@ -271,7 +271,7 @@ def main():
     dims = list_option(ap, "--dims", args.dims, [2, 3], int)
     elements = list_option(ap, "--elements", args.elements, ["p1", "cr"])
     sizes = {2: list_option(ap, "--n2", args.n2, convert=count), 3: list_option(ap, "--n3", args.n3, convert=count)}
-    os.makedirs(args.out, exist_ok=True)
+    launch.output_folder(ap, "--out", args.out)
     if not args.no_warm_memory:
         warm_memory()
     if args.peer:

@@ -54,6 +54,21 @@ def number_in(low, high=float("inf"), low_open=False):
     return convert
 
 
+def output_folder(ap, option, value, path=None):
+    """Makes the folder a script writes its results in (`path`, default the value of `option`), or an argparse
+    error naming the option (exit 2) before any run: one that could not be made or written ended the script
+    in a traceback, after its runs where it writes at the end (run/stability --csv)."""
+    path = path or value
+    if os.path.exists(path) and not os.path.isdir(path):
+        ap.error("%s %s: %s is not a folder" % (option, value, path))
+    try:
+        os.makedirs(path, exist_ok=True)
+    except OSError as e:
+        ap.error("%s %s: cannot make the folder %s (%s)" % (option, value, path, e.strerror))
+    if not os.access(path, os.W_OK | os.X_OK):
+        ap.error("%s %s: the folder %s cannot be written" % (option, value, path))
+
+
 def nothing_succeeded(rows, out_dir, names):
     """Whether every run of a benchmark failed (rows with "status"); if so, says that its files `names` in
     out_dir are left as they were: a table of failures and an empty plot would replace the last results."""

@@ -208,7 +208,7 @@ def main():
             args.ranks.append(args.max_ranks)
     args.strong_n = args.strong_n or (2048 if args.dim == 2 else 96)
     args.weak_n = args.weak_n or (512 if args.dim == 2 else 48)
-    os.makedirs(args.out, exist_ok=True)
+    launch.output_folder(ap, "--out", args.out)
     if not args.no_warm_memory:
         warm_memory()
     results = {}

@@ -766,6 +766,9 @@ def main():
     if not any(args.only in name for name, _ in groups):  # a mistyped group ran nothing and wrote an empty table
         names = [name for name, _ in groups] + ([] if any(name == "finest" for name, _ in groups) else ["finest"])
         ap.error("--only %s: no group's name contains it (groups: %s)" % (args.only, ", ".join(names)))
+    if os.path.isdir(args.csv):
+        ap.error("--csv %s: a folder, not a file name" % args.csv)
+    launch.output_folder(ap, "--csv", args.csv, os.path.dirname(os.path.abspath(args.csv)))
     t0 = time.time()
     with tempfile.TemporaryDirectory(prefix="stability-") as tmp:
         rep = Report(Runner(args.ranks, tmp))

@@ -95,6 +95,7 @@ def main():
                     help="the reference ends earlier, at the first mesh with this many times the DOFs of the run's last step (0: no such end; default %g)" % compare.REFERENCE_DOFS)
     args, options = ap.parse_known_args()
     out = args.out or os.path.join(ROOT, "results", args.scene)
+    launch.output_folder(ap, "--out", out)
     started = time.time()
     study = run_study(args.scene, options, out, args.ranks)
     rows, summaries = compare.adaptive(args.scene, options, study, out, args.ranks, args.adapt_steps, args.theta, args.reference_steps, args.reference_dofs)

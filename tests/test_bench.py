@@ -150,4 +150,14 @@ for mode, files in [([], ["bench.csv", "time-per-dof.png"]), (["--estimate", "--
         p = bench(tmp, *(mode + ["-kappa", "-1"]))
         kept = all(open(os.path.join(tmp, name)).read() == "earlier results\n" for name in files)
         c.check(p.returncode == 1 and kept and "no run succeeded" in p.stdout, "%s with every run failing: exit %d, %s left as they were: %s" % (" ".join(mode) or "bench", p.returncode, ", ".join(files), kept))
+
+# An output that cannot be written ended the scripts in a traceback, run/stability after all its runs: now a
+# usage error (exit 2) before any run, in every script of run/.
+for script, args in [("bench.py", ["--quick", "--out", "/dev/null/x"]), ("bench.py", ["--estimate", "--quick", "--out", "/dev/null"]),
+                     ("scaling.py", ["--ranks", "1", "--out", "/dev/null/x"]), ("study.py", ["paper-5.1", "--out", "/dev/null/x"]),
+                     ("stability.py", ["--only", "psi", "--csv", "/dev/null/x.csv"]), ("stability.py", ["--only", "psi", "--csv", ROOT])]:
+    p = subprocess.run([sys.executable, os.path.join(ROOT, "run", script)] + args, capture_output=True, text=True, env=ENV)
+    lines = p.stderr.strip().splitlines()
+    c.check(p.returncode == 2 and lines and ("--out" in lines[-1] or "--csv" in lines[-1]) and "Traceback" not in p.stderr and "running" not in p.stderr,
+            "run/%s %s: exit %d, %s" % (script, " ".join(args), p.returncode, lines[-1:]))
 c.done()
