@@ -630,6 +630,14 @@ static PetscErrorCode SolveVI(const Space &space, const Problem &problem, const 
   r.stoppedBy = !energyStop.stopped ? "full" : opts.energyError > 0 ? "energy_error" : "start_error";
   PetscCall(energyStop.Destroy());
   r.kktSteps = kktStop.steps;
+  // The semismooth Jacobian is not symmetric: a Krylov method for symmetric operators given for it is the
+  // likely cause of a failure, and the hint names it.
+  PetscBool symmetricKrylov = PETSC_FALSE;
+  if (!rsls) PetscCall(PetscObjectTypeCompareAny((PetscObject)ksp, &symmetricKrylov, KSPCG, KSPPIPECG, KSPGROPPCG, KSPPIPEPRCG, KSPNASH, KSPSTCG, KSPGLTR, KSPMINRES, ""));
+  KSPType kspType;
+  PetscCall(KSPGetType(ksp, &kspType));
+  const std::string hint = symmetricKrylov ? Format("; -ksp_type %s needs a symmetric operator, and the Jacobian of -snes_type vinewtonssls is not one: leave -ksp_type out (GMRES) or give gmres", kspType)
+                                           : std::string("; for kappa jumps or stretched cells, -options_file petsc-options/solvers/high-contrast");
   PetscCall(SNESDestroy(&snes));
   PetscCall(stall.Destroy());
   PetscCall(kktStop.Destroy());
@@ -648,7 +656,7 @@ static PetscErrorCode SolveVI(const Space &space, const Problem &problem, const 
     const std::string asked = atolAsked >= rtolAsked * f0 ? Format("-snes_atol %g", (double)atolAsked) : Format("-snes_rtol %g times the residual %.3e of the start from u_D", (double)rtolAsked, (double)f0);
     SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)u), "solver: the contact solve cannot reach the residual asked for, %.2e (%s): its round-off floor is about %.2e (%" PetscInt_FMT " Newton steps on the same active set did not lower it); ask for -snes_rtol %.0e or -snes_atol %.0e or more", (double)target, asked.c_str(), (double)stall.floor, StallGuard::kStalledSteps, (double)rtolMin, (double)atolMin);
   }
-  if (reason <= 0) SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)u), "solver: the contact solve (SNESVI) did not converge (%s after %" PetscInt_FMT " Newton iterations); see -snes_monitor -snes_vi_monitor -ksp_converged_reason; for kappa jumps or stretched cells, -options_file petsc-options/solvers/high-contrast", r.reason.c_str(), r.newtonIts);
+  if (reason <= 0) SIGNORINI_INPUT_ERROR(PetscObjectComm((PetscObject)u), "solver: the contact solve (SNESVI) did not converge (%s after %" PetscInt_FMT " Newton iterations); see -snes_monitor -snes_vi_monitor -ksp_converged_reason%s", r.reason.c_str(), r.newtonIts, hint.c_str());
   PetscFunctionReturn(0);
 }
 

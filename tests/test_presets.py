@@ -74,6 +74,11 @@ with tempfile.TemporaryDirectory() as tmp:
                             "%s: KKT relative %.1e, stationarity %.1e, no warning" % (tag, k["relative"], s["stationarity"]))
                     c.check(s["solver"]["newton_iterations"] <= 20, "%s: %d Newton steps" % (tag, s["solver"]["newton_iterations"]))
 
+# A Krylov method for symmetric operators given to the semismooth solver: the failure's line names the cause.
+rc, out, err, s = run(scene("stiff-checkerboard") + ["-space", "cr", "-box_faces", "8", "-snes_type", "vinewtonssls", "-ksp_type", "cg"], check=False)
+lines = [l for l in err.splitlines() if l.startswith("signorini: error:")]
+c.check(rc == 1 and len(lines) == 1 and "-ksp_type cg needs a symmetric operator" in lines[0], "-snes_type vinewtonssls -ksp_type cg: one line naming the cause: %r" % lines)
+
 rc, out, err, s = run(scene("paper-5.1") + ["-box_faces", "8", "-pc_type", "gamg"], check=False)
 lines = [l for l in err.splitlines() if l.strip()]
 c.check(rc == 1 and len(lines) == 1 and "-pc_type gamg" in lines[0] and "-vi_pc_type gamg" in lines[0] and s is None,
