@@ -174,6 +174,7 @@ PetscErrorCode CheckSizes(MPI_Comm comm, const MeshOptions &o, const MeshCounts 
 }
 
 double SolveBytes(PetscInt dim, Element e, double dofs) { return BytesPerDof(dim, e) * dofs; }
+double FixedBytes() { return kFixedBytes; }
 
 PetscErrorCode MemoryFits(MPI_Comm comm, double variable, double limitGB, bool &fits, std::string &need)
 {

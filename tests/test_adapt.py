@@ -231,10 +231,10 @@ if s is not None:
     k = len(s["adapt"]) - 1
     c.check(3 < k < 14 and len(free["adapt"]) > k + 1 and [r["dofs"] for r in free["adapt"][:k + 1]] == [r["dofs"] for r in s["adapt"]] and s["dofs"] == s["adapt"][-1]["dofs"],
             "-memory_limit 0.06: the result is step %d's, the steps before it as without the check, which goes on (%d steps)" % (k, len(free["adapt"])))
-rc, out, err, s = run(mem + ["-memory_limit", "0.06", "-adapt_max_dofs", "2000", "-adapt_reference_steps", "6"], check=False)
+rc, out, err, s = run(mem + ["-memory_limit", "0.08", "-adapt_max_dofs", "2000", "-adapt_reference_steps", "6"], check=False)
 ref = [r for r in (s or {}).get("adapt", []) if r["reference_step"]]
 c.check(rc == 0 and s["adapt_ended"] == "max_dofs" and 0 < len(ref) < 6 and "reference steps ended at step" in out,
-        "-memory_limit 0.06 -adapt_reference_steps 6: the reference ends early, after %d steps, and says so" % len(ref))
+        "-memory_limit 0.08 -adapt_reference_steps 6: the reference ends early, after %d steps, and says so" % len(ref))
 for ranks, limit in [(1, "0.06"), (2, "0.11")]:
     rc, out, err, s = run(scene("manufactured-2d") + ["-box_faces", "64", "-space", "p1", "-adapt_steps", "2", "-adapt_theta", "1", "-memory_limit", limit], ranks=ranks, check=False)
     lines = sorted(set(l for l in (out + err).splitlines() if l.startswith("signorini: error:")))

@@ -44,6 +44,8 @@ PetscErrorCode CheckSizes(MPI_Comm comm, const MeshOptions &o, const MeshCounts 
 
 // The memory a solve adds per its DOFs (summed over the ranks), beyond the fixed part of every rank.
 double SolveBytes(PetscInt dim, Element e, double dofs);
+// The fixed part of every rank's memory (MPI, PETSc, hypre).
+double FixedBytes();
 // Collective: whether `variable` bytes (summed over the ranks, shared equally) and the fixed part of every
 // rank fit the memory of the nodes of `comm` (limitGB > 0: -memory_limit, per node, instead of the
 // machine's); need: how much, against what, for a message.
