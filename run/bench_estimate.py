@@ -109,7 +109,6 @@ def main(bench_args, extra):
           ("p1", 2): args.adapt_p1_n2 or (128 if quick else 1024), ("p1", 3): args.adapt_p1_n3 or (24 if quick else 80)}
     steps = {d: args.adapt_steps or (1 if quick else (3 if d == 2 else 2)) for d in (2, 3)}
     dims, elements = [int(d) for d in bench_args.dims.split(",")], bench_args.elements.split(",")
-    os.makedirs(bench_args.out, exist_ok=True)
     est = [estimate_case(d, e, n[(e, d)], bench_args.ranks, bench_args.repeat, bench_args.out, extra) for d in dims for e in elements]
     ada = [r for d in dims for e in elements for r in adapt_case(d, e, na[(e, d)], steps[d], bench_args.ranks, bench_args.repeat, bench_args.out, extra)]
     note = "; medians of %d runs" % bench_args.repeat if bench_args.repeat > 1 else ""

@@ -49,7 +49,6 @@ def main(bench_args, extra):
     args, extra = ap.parse_known_args(extra)
     sizes = [int(n) for n in (args.nohier_n2 or ("64" if bench_args.quick else "1024")).split(",")]
     elements = bench_args.elements.split(",")
-    os.makedirs(bench_args.out, exist_ok=True)
     rows = []
     for N in sizes:
         msh = os.path.join(bench_args.out, "paper-5.1-N%d.msh" % N)

@@ -116,7 +116,6 @@ def main(bench_args, extra):
     dims = list_option(ap, "--dims", bench_args.dims, [2, 3], int)
     args.peer_elements = ",".join(list_option(ap, "--peer-elements", args.peer_elements, ["p1", "cr"]))
     repeat = bench_args.repeat if bench_args.repeat > 1 else 3
-    os.makedirs(bench_args.out, exist_ok=True)
     ensure_dolfinx()
     try:
         for dim in dims:  # untimed: FFCx compiles the forms of each case once

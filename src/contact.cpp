@@ -630,14 +630,16 @@ static PetscErrorCode SolveVI(const Space &space, const Problem &problem, const 
   r.stoppedBy = !energyStop.stopped ? "full" : opts.energyError > 0 ? "energy_error" : "start_error";
   PetscCall(energyStop.Destroy());
   r.kktSteps = kktStop.steps;
-  // The semismooth Jacobian is not symmetric: a Krylov method for symmetric operators given for it is the
-  // likely cause of a failure, and the hint names it.
-  PetscBool symmetricKrylov = PETSC_FALSE;
-  if (!rsls) PetscCall(PetscObjectTypeCompareAny((PetscObject)ksp, &symmetricKrylov, KSPCG, KSPPIPECG, KSPGROPPCG, KSPPIPEPRCG, KSPNASH, KSPSTCG, KSPGLTR, KSPMINRES, ""));
-  KSPType kspType;
-  PetscCall(KSPGetType(ksp, &kspType));
-  const std::string hint = symmetricKrylov ? Format("; -ksp_type %s needs a symmetric operator, and the Jacobian of -snes_type vinewtonssls is not one: leave -ksp_type out (GMRES) or give gmres", kspType)
-                                           : std::string("; for kappa jumps or stretched cells, -options_file petsc-options/solvers/high-contrast");
+  // The hint of a failure (read while the KSP exists). The semismooth Jacobian is not symmetric: a Krylov
+  // method for symmetric operators given for it is the likely cause, and the hint names it.
+  std::string hint = "; for kappa jumps or stretched cells, -options_file petsc-options/solvers/high-contrast";
+  PetscBool   symmetricKrylov = PETSC_FALSE;
+  if (reason <= 0 && !rsls) PetscCall(PetscObjectTypeCompareAny((PetscObject)ksp, &symmetricKrylov, KSPCG, KSPPIPECG, KSPGROPPCG, KSPPIPEPRCG, KSPNASH, KSPSTCG, KSPGLTR, KSPMINRES, ""));
+  if (symmetricKrylov) {
+    KSPType kspType;
+    PetscCall(KSPGetType(ksp, &kspType));
+    hint = Format("; -ksp_type %s needs a symmetric operator, and the Jacobian of -snes_type vinewtonssls is not one: leave -ksp_type out (GMRES) or give gmres", kspType);
+  }
   PetscCall(SNESDestroy(&snes));
   PetscCall(stall.Destroy());
   PetscCall(kktStop.Destroy());

@@ -132,7 +132,6 @@ double Nonzeros(const MeshCounts &m, Element e)
   return m.dim == 2 ? m.e + 6 * m.c : m.f + 12 * m.c;
 }
 
-double PeakBytes(const MeshCounts &m, Element e, double ranks) { return kFixedBytes + BytesPerDof(m.dim, e) * Dofs(m, e) / ranks; }
 
 PetscErrorCode CheckSizes(MPI_Comm comm, const MeshOptions &o, const MeshCounts &coarse, Element element, const StudyOptions &study)
 {
@@ -148,7 +147,7 @@ PetscErrorCode CheckSizes(MPI_Comm comm, const MeshOptions &o, const MeshCounts 
   for (Element e : solved) {
     dofs     = std::max(dofs, Dofs(finest, e));
     nonzeros = std::max(nonzeros, Nonzeros(finest, e));
-    variable = std::max(variable, PeakBytes(finest, e, 1) - kFixedBytes);
+    variable = std::max(variable, SolveBytes(finest.dim, e, Dofs(finest, e)));
   }
   if (study.levels > 0) // every level's mesh stays alive during the study
     for (PetscInt l = 0; l <= extra; ++l) variable += kIndexWidthFactor * kMeshBytesPerPoint * Refined(coarse, o.refine + l).Points();

@@ -34,15 +34,15 @@ PetscErrorCode CountMesh(DM dm, MeshCounts &m);
 MeshCounts Refined(MeshCounts m, PetscInt times);
 double     Dofs(const MeshCounts &m, Element e);
 double     Nonzeros(const MeshCounts &m, Element e); // of the stiffness matrix, Dirichlet rows included
-// Predicted peak resident memory in bytes of one rank holding `dofs` / `ranks` DOFs (see sizes.cpp).
-double PeakBytes(const MeshCounts &m, Element e, double ranks);
+// The predicted peak resident memory of a rank is FixedBytes() plus its share of SolveBytes (below).
 
 // Collective: the check itself, called with the coarse mesh's counts (MeshCreate's size hook). `o` says
 // what was asked (the box or file, the refinements); the element and the study say what is solved.
 // Raises a one-line input error on every rank.
 PetscErrorCode CheckSizes(MPI_Comm comm, const MeshOptions &o, const MeshCounts &coarse, Element element, const StudyOptions &study);
 
-// The memory a solve adds per its DOFs (summed over the ranks), beyond the fixed part of every rank.
+// The memory a solve of `dofs` DOFs adds (summed over the ranks), beyond the fixed part of every rank
+// (see sizes.cpp).
 double SolveBytes(PetscInt dim, Element e, double dofs);
 // The fixed part of every rank's memory (MPI, PETSc, hypre).
 double FixedBytes();
