@@ -527,8 +527,8 @@ PetscErrorCode NumberVertices(DM dm, const Coarse &m, const Sharing &sh, const s
 }
 
 // The fine mesh of one rank. Points: the children (cells) in order, the vertices (numbered by increasing
-// global number), then in 3D the triangles, then the edges. Edges and triangles store their vertices by
-// increasing number.
+// global number), then in 3D the triangles, then the edges (both in the order FinePoints meets them).
+// Edges and triangles store their vertices by increasing number.
 struct Fine {
   PetscInt              dim = 0, nc = 0, nv = 0, nt = 0, ne = 0;
   std::vector<PetscInt> vertexOf, vertexId;     // local id -> fine vertex (-1: none), and back
@@ -544,67 +544,73 @@ struct Fine {
   PetscInt              End() const { return nc + nv + nt + ne; }
 };
 
-// The coarse point that a fine edge or triangle of a child of coarse cell c lies in, from the parent's
-// vertices its vertices lie on (bits, see Children::on): two make the coarse edge between them (a fine
-// vertex is a coarse vertex or the midpoint of a coarse edge, so such a point lies on that edge), three
-// in 3D the face they span, else -1 (the cell's interior).
-PetscInt Carrier(const Coarse &m, PetscInt c, int on)
-{
-  if (kPairOf[on] >= 0) return m.eS + m.cellEdges[m.nce * c + kPairOf[on]];
-  if (m.dim == 3 && kOpposite[on] >= 0) return m.cellFaces[4 * c + kOpposite[on]];
-  return -1;
-}
-
-// Numbers the distinct keys (pairs (bucket, rest), one per occurrence o < n, from keyOf(o); rest < numRest)
-// in increasing order: idOf[occurrence] = number, `keys` gets each key once (2 numbers), `first` its first
-// occurrence. The occurrences are bucketed (a counting sort, which keeps them in increasing order within a
-// bucket), and each bucket's distinct rests are found by marking them (seen[rest]: the bucket that last
-// met it), so that only those are sorted, not every occurrence: a vertex of a tetrahedral mesh has about
-// 36 edge occurrences, 14 of them distinct.
-template <class KeyOf>
-void Distinct(PetscInt n, PetscInt numBuckets, PetscInt numRest, const KeyOf &keyOf, std::vector<PetscInt> &idOf, std::vector<PetscInt> &keys, std::vector<PetscInt> &first)
-{
-  struct Record {
-    PetscInt rest, o;
-  };
-  std::vector<PetscInt> start(numBuckets + 1, 0);
-  for (PetscInt o = 0; o < n; ++o) ++start[keyOf(o)[0] + 1];
-  std::partial_sum(start.begin(), start.end(), start.begin());
-  std::vector<Record> rec(n);
-  for (PetscInt o = 0; o < n; ++o) {
-    const std::array<PetscInt, 2> k = keyOf(o);
-    rec[start[k[0]]++]              = {k[1], o};
+// The distinct edges or triangles (their vertices sorted; 2 or 3 used) that the children of one coarse
+// cell have in one carrier, and for each occurrence its item and its slot in Fine::childEdge or
+// Fine::childTri. A cell has at most 8 children (see Cut): at most 48 occurrences.
+struct CarrierItems {
+  using Key                    = std::array<PetscInt, 3>;
+  static constexpr int kMaxOcc = 48;
+  int                  nOcc = 0, nKeys = 0;
+  Key                  keys[kMaxOcc];
+  int                  item[kMaxOcc];
+  PetscInt             slot[kMaxOcc];
+  void                 Clear() { nOcc = nKeys = 0; }
+  void                 Add(const Key &key, PetscInt at)
+  {
+    int i = 0;
+    while (i < nKeys && (keys[i][0] != key[0] || keys[i][1] != key[1] || keys[i][2] != key[2])) ++i; // a few at most
+    if (i == nKeys) keys[nKeys++] = key;
+    item[nOcc] = i, slot[nOcc++] = at;
   }
-  // start[b] is now where bucket b + 1 starts.
-  idOf.resize(n);
-  keys.clear(), first.clear();
-  keys.reserve(2 * n), first.reserve(n); // pages untouched beyond the distinct keys
-  std::vector<PetscInt> seen(numRest, -1), idOfRest(numRest);
-  std::vector<Record>   distinct; // of one bucket: its rests and their first occurrences
-  PetscInt              id = 0;
-  for (PetscInt b = 0, lo = 0; b < numBuckets; lo = start[b++]) {
-    const Record *r0 = rec.data() + lo, *r1 = rec.data() + start[b];
-    distinct.clear();
-    for (const Record *r = r0; r < r1; ++r)
-      if (seen[r->rest] != b) seen[r->rest] = b, distinct.push_back(*r);
-    if (distinct.size() > 32) std::sort(distinct.begin(), distinct.end(), [](const Record &x, const Record &y) { return x.rest < y.rest; });
-    else // a few entries, the usual case: an insertion sort is cheaper than std::sort's set-up
-      for (size_t i = 1; i < distinct.size(); ++i)
-        for (size_t j = i; j > 0 && distinct[j].rest < distinct[j - 1].rest; --j) std::swap(distinct[j], distinct[j - 1]);
-    for (const Record &d : distinct) {
-      keys.push_back(b), keys.push_back(d.rest);
-      first.push_back(d.o);
-      idOfRest[d.rest] = id++;
+};
+
+// Numbers the items of one carrier and writes the numbers into their slots. first: the carrier's first
+// number, -1 until a cell meets it (then the items are new: they get numbers from the end of `carriers`
+// on, their vertices (nvk each) and carrier, and *fresh is set); else the carrier's other cell numbered
+// them, which must have met the same items. A carrier shared by two cells (a coarse face) numbers its
+// items in the order of their vertices, so that both give each the same number.
+PetscErrorCode Place(const CarrierItems &items, bool shared, PetscInt carrier, PetscInt nvk, PetscInt &first, std::vector<PetscInt> &verts, std::vector<PetscInt> &carriers, PetscInt *slots, bool *fresh)
+{
+  const int n = items.nKeys;
+  int       rank[CarrierItems::kMaxOcc]; // of each item in the carrier
+  PetscFunctionBeginUser;
+  for (int i = 0; i < n; ++i) {
+    rank[i] = i;
+    if (shared && n > 1) {
+      rank[i] = 0;
+      for (int j = 0; j < n; ++j) rank[i] += items.keys[j] < items.keys[i];
     }
-    for (const Record *r = r0; r < r1; ++r) idOf[r->o] = idOfRest[r->rest];
   }
+  *fresh = first < 0;
+  if (first < 0) {
+    first = (PetscInt)carriers.size();
+    carriers.resize(first + n, carrier);
+    verts.resize(nvk * (first + n));
+    for (int i = 0; i < n; ++i) std::copy(items.keys[i].begin(), items.keys[i].begin() + nvk, &verts[nvk * (first + rank[i])]);
+  } else {
+    bool same = first + n == (PetscInt)carriers.size() || carriers[first + n] != carrier;
+    for (int i = 0; i < n && same; ++i) same = carriers[first + rank[i]] == carrier && std::equal(items.keys[i].begin(), items.keys[i].begin() + nvk, &verts[nvk * (first + rank[i])]);
+    PetscCheck(same, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: coarse point %" PetscInt_FMT " is cut differently in its two cells", carrier);
+  }
+  for (int o = 0; o < items.nOcc; ++o) slots[items.slot[o]] = first + rank[items.item[o]];
+  PetscFunctionReturn(0);
 }
 
-// The fine points of one rank: vertices, then the distinct edges and triangles of the children, each with
-// its carrier.
-void FinePoints(const Coarse &m, const Children &ch, const std::vector<PetscInt> &gnum, Fine &f)
+// The fine points of one rank: vertices, then the edges and triangles of the children, each with its
+// carrier, the coarse point it lies in. That is known from the parent's vertices its vertices lie on
+// (bits, see Children::on): two make the coarse edge between them (a fine vertex is a coarse vertex or the
+// midpoint of a coarse edge, so such a point lies on that edge), three in 3D the face they span, else the
+// cell's interior. An edge or triangle is found from its carrier, not by sorting all of them: on a
+// coarse edge it is that edge or one of its halves; inside a coarse face it is met by the children of the
+// face's cells on this rank, which both number the face's items in the order of their vertices; inside a
+// cell by that cell's children only. Edges and triangles are numbered as the children, coarse cell by
+// coarse cell, first meet them, which keeps the points of a region of the mesh close in the chart (and
+// the rows of a Crouzeix-Raviart matrix close).
+PetscErrorCode FinePoints(const Coarse &m, const Children &ch, const std::vector<char> &mark, const std::vector<PetscInt> &gnum, Fine &f)
 {
+  using Key         = CarrierItems::Key;
   const PetscInt nb = ch.nv, nce = m.nce;
+  PetscFunctionBeginUser;
   f.dim = m.dim, f.nc = (PetscInt)ch.verts.size() / nb;
   // The vertices by global number. A rank numbers its own in the order of their ids, so the numbers come
   // mostly ascending: the ascending run is kept, the few others sorted and merged into it.
@@ -629,53 +635,95 @@ void FinePoints(const Coarse &m, const Children &ch, const std::vector<PetscInt>
   for (size_t i = 0; i < ch.verts.size(); ++i) f.childVerts[i] = f.vertexOf[ch.verts[i]];
   const PetscInt *cv = f.childVerts.data();
   const char     *on = ch.on.data();
-  std::vector<PetscInt> first;
-  // Edges (a, b), a < b, bucketed by a.
-  Distinct(
-    nce * f.nc, f.nv, f.nv,
-    [&](PetscInt o) {
-      const PetscInt *v = cv + nb * (o / nce), *p = kPair[o % nce];
-      return std::array<PetscInt, 2>{std::min(v[p[0]], v[p[1]]), std::max(v[p[0]], v[p[1]])};
-    },
-    f.childEdge, f.edgeVerts, first);
-  f.ne = (PetscInt)first.size();
-  f.edgeCarrier.resize(f.ne);
-  for (PetscInt o = 0; o < nce * f.nc; ++o) {
-    const PetscInt j = f.childEdge[o], t = o / nce, *p = kPair[o % nce];
-    if (first[j] == o) f.edgeCarrier[j] = Carrier(m, f.parentOf[t], on[nb * t + p[0]] | on[nb * t + p[1]]);
+
+  // The first number of the fine edges on each coarse edge, and of the edges and triangles inside each
+  // coarse face (3D); -1: not met yet.
+  std::vector<PetscInt> onEdge(m.NumEdges(), -1), inFaceE(m.dim == 3 ? m.fE - m.fS : 0, -1), inFaceT(inFaceE);
+  f.childEdge.assign(nce * f.nc, -1);
+  f.childTri.assign(m.dim == 3 ? 4 * f.nc : 0, -1);
+  f.edgeVerts.clear(), f.edgeCarrier.clear(), f.triVerts.clear(), f.triCarrier.clear(), f.triEdges.clear();
+  f.edgeVerts.reserve(2 * nce * f.nc), f.edgeCarrier.reserve(nce * f.nc); // bounds: pages beyond the edges stay untouched
+  if (m.dim == 3) f.triVerts.reserve(12 * f.nc), f.triCarrier.reserve(4 * f.nc);
+  CarrierItems faceItems[4], cellItems;
+  bool         fresh;
+  for (PetscInt c = 0; c < m.NumCells(); ++c) {
+    // Edges: those on coarse edges at once, the others by carrier.
+    PetscCheck(ch.start[c + 1] - ch.start[c] <= 8, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: %" PetscInt_FMT " children", ch.start[c + 1] - ch.start[c]);
+    // The fine edges on the cell's coarse edges: the whole edge, or its halves (the first one has the
+    // edge's first vertex), made when first met.
+    PetscInt onFirst[6], firstVertex[6];
+    bool     halved[6];
+    for (PetscInt p = 0; p < nce; ++p) {
+      const PetscInt E = m.cellEdges[nce * c + p], A = f.vertexOf[m.edgeVerts[2 * E]];
+      if (onEdge[E] < 0) {
+        const PetscInt B = f.vertexOf[m.edgeVerts[2 * E + 1]], M = mark[E] ? f.vertexOf[m.NumVertices() + E] : -1;
+        onEdge[E]        = (PetscInt)f.edgeCarrier.size();
+        const PetscInt ends[3] = {A, mark[E] ? M : B, B};
+        for (PetscInt h = 0; h < (mark[E] ? 2 : 1); ++h) {
+          f.edgeVerts.push_back(std::min(ends[h], ends[h + 1])), f.edgeVerts.push_back(std::max(ends[h], ends[h + 1]));
+          f.edgeCarrier.push_back(m.eS + E);
+        }
+      }
+      onFirst[p] = onEdge[E], firstVertex[p] = A, halved[p] = mark[E];
+    }
+    for (auto &items : faceItems) items.Clear();
+    cellItems.Clear();
+    for (PetscInt t = ch.start[c]; t < ch.start[c + 1]; ++t)
+      for (PetscInt k = 0; k < nce; ++k) {
+        const PetscInt a = cv[nb * t + kPair[k][0]], b = cv[nb * t + kPair[k][1]], slot = nce * t + k;
+        const int      bits = on[nb * t + kPair[k][0]] | on[nb * t + kPair[k][1]], p = kPairOf[bits];
+        if (p >= 0) f.childEdge[slot] = onFirst[p] + (halved[p] && a != firstVertex[p] && b != firstVertex[p]);
+        else {
+          const Key key = {std::min(a, b), std::max(a, b), -1};
+          if (m.dim == 3 && kOpposite[bits] >= 0) faceItems[kOpposite[bits]].Add(key, slot);
+          else cellItems.Add(key, slot);
+        }
+      }
+    if (m.dim == 3)
+      for (PetscInt i = 0; i < 4; ++i) {
+        if (!faceItems[i].nKeys) continue;
+        const PetscInt F = m.cellFaces[4 * c + i];
+        PetscCall(Place(faceItems[i], true, F, 2, inFaceE[F - m.fS], f.edgeVerts, f.edgeCarrier, f.childEdge.data(), &fresh));
+      }
+    PetscInt inCell = -1;
+    if (cellItems.nKeys) PetscCall(Place(cellItems, false, -1, 2, inCell, f.edgeVerts, f.edgeCarrier, f.childEdge.data(), &fresh));
+    if (m.dim == 2) continue;
+    // Triangles, each with its edges (a, b), (b, c), (c, a) from a child that has it.
+    for (auto &items : faceItems) items.Clear();
+    cellItems.Clear();
+    for (PetscInt t = ch.start[c]; t < ch.start[c + 1]; ++t)
+      for (PetscInt k = 0; k < 4; ++k) {
+        const PetscInt *r = kRefFace[k], *v = cv + 4 * t;
+        Key             key = {v[r[0]], v[r[1]], v[r[2]]};
+        if (key[0] > key[1]) std::swap(key[0], key[1]);
+        if (key[1] > key[2]) std::swap(key[1], key[2]);
+        if (key[0] > key[1]) std::swap(key[0], key[1]);
+        const int bits = on[4 * t + r[0]] | on[4 * t + r[1]] | on[4 * t + r[2]];
+        if (kOpposite[bits] >= 0) faceItems[kOpposite[bits]].Add(key, 4 * t + k);
+        else cellItems.Add(key, 4 * t + k);
+      }
+    const auto edgesOf = [&](const CarrierItems &items) {
+      for (int o = 0; o < items.nOcc; ++o) {
+        const Key     &key = items.keys[items.item[o]];
+        const PetscInt slot = items.slot[o], t = slot / 4, *r = kRefFace[slot % 4], *v = cv + 4 * t, j = f.childTri[slot];
+        int            bit[3]; // of a, b, c: their vertex in the child
+        for (PetscInt i = 0; i < 3; ++i) bit[v[r[i]] == key[0] ? 0 : v[r[i]] == key[1] ? 1 : 2] = 1 << r[i];
+        for (PetscInt e = 0; e < 3; ++e) f.triEdges[3 * j + e] = f.childEdge[6 * t + kPairOf[bit[e] | bit[(e + 1) % 3]]];
+      }
+    };
+    for (PetscInt i = 0; i < 4; ++i) {
+      const PetscInt F = m.cellFaces[4 * c + i];
+      PetscCall(Place(faceItems[i], true, F, 3, inFaceT[F - m.fS], f.triVerts, f.triCarrier, f.childTri.data(), &fresh));
+      if (fresh) f.triEdges.resize(f.triVerts.size()), edgesOf(faceItems[i]);
+    }
+    if (cellItems.nKeys) {
+      inCell = -1;
+      PetscCall(Place(cellItems, false, -1, 3, inCell, f.triVerts, f.triCarrier, f.childTri.data(), &fresh));
+      f.triEdges.resize(f.triVerts.size()), edgesOf(cellItems);
+    }
   }
-  if (m.dim == 2) return;
-  // Triangles (a, b, c), a < b < c, bucketed by their edge (a, b): the edges are numbered in the order of
-  // (a, b), so the order of (edge, c) is that of (a, b, c), and the buckets are small.
-  std::vector<PetscInt> edgeAndTop;
-  Distinct(
-    4 * f.nc, f.ne, f.nv,
-    [&](PetscInt o) {
-      const PetscInt  t = o / 4, *v = cv + 4 * t, *r = kRefFace[o % 4];
-      const PetscInt top = v[r[0]] > v[r[1]] ? (v[r[0]] > v[r[2]] ? 0 : 2) : (v[r[1]] > v[r[2]] ? 1 : 2);
-      const int      low = (1 << r[0] | 1 << r[1] | 1 << r[2]) & ~(1 << r[top]);
-      return std::array<PetscInt, 2>{f.childEdge[6 * t + kPairOf[low]], v[r[top]]};
-    },
-    f.childTri, edgeAndTop, first);
-  f.nt = (PetscInt)first.size();
-  f.triVerts.resize(3 * f.nt);
-  for (PetscInt j = 0; j < f.nt; ++j) {
-    const PetscInt e = edgeAndTop[2 * j];
-    f.triVerts[3 * j] = f.edgeVerts[2 * e], f.triVerts[3 * j + 1] = f.edgeVerts[2 * e + 1], f.triVerts[3 * j + 2] = edgeAndTop[2 * j + 1];
-  }
-  // The carrier and the edges, from the triangle's first occurrence in a child (in the children's order,
-  // which reads them in order).
-  f.triCarrier.resize(f.nt);
-  f.triEdges.resize(3 * f.nt);
-  for (PetscInt o = 0; o < 4 * f.nc; ++o) {
-    const PetscInt j = f.childTri[o];
-    if (first[j] != o) continue;
-    const PetscInt t = o / 4, *r = kRefFace[o % 4], *v = cv + 4 * t, *abc = &f.triVerts[3 * j];
-    f.triCarrier[j] = Carrier(m, f.parentOf[t], on[4 * t + r[0]] | on[4 * t + r[1]] | on[4 * t + r[2]]);
-    int bit[3]; // of a, b, c: their vertex in the child
-    for (PetscInt i = 0; i < 3; ++i) bit[v[r[i]] == abc[0] ? 0 : v[r[i]] == abc[1] ? 1 : 2] = 1 << r[i];
-    for (PetscInt e = 0; e < 3; ++e) f.triEdges[3 * j + e] = f.childEdge[6 * t + kPairOf[bit[e] | bit[(e + 1) % 3]]];
-  }
+  f.ne = (PetscInt)f.edgeCarrier.size(), f.nt = (PetscInt)f.triCarrier.size();
+  PetscFunctionReturn(0);
 }
 
 // The cones and orientations of the children: their faces in PETSc's reference order.
@@ -926,7 +974,7 @@ PetscErrorCode RefineMarkedBisection(DM coarse, const std::vector<char> &marked,
   Cut(m, before, mark, ch);
   std::vector<PetscInt> gnum;
   PetscCall(NumberVertices(coarse, m, sh, mark, gnum));
-  FinePoints(m, ch, gnum, f);
+  PetscCall(FinePoints(m, ch, mark, gnum, f));
   PetscCall(PetscLogEventEnd(ev[2], 0, 0, 0, 0));
   PetscCall(PetscLogEventBegin(ev[3], 0, 0, 0, 0));
 
