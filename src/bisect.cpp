@@ -643,7 +643,7 @@ PetscErrorCode FinePoints(const Coarse &m, const Children &ch, const std::vector
   f.childTri.assign(m.dim == 3 ? 4 * f.nc : 0, -1);
   f.edgeVerts.clear(), f.edgeCarrier.clear(), f.triVerts.clear(), f.triCarrier.clear(), f.triEdges.clear();
   f.edgeVerts.reserve(2 * nce * f.nc), f.edgeCarrier.reserve(nce * f.nc); // bounds: pages beyond the edges stay untouched
-  if (m.dim == 3) f.triVerts.reserve(12 * f.nc), f.triCarrier.reserve(4 * f.nc);
+  if (m.dim == 3) f.triVerts.reserve(12 * f.nc), f.triEdges.reserve(12 * f.nc), f.triCarrier.reserve(4 * f.nc);
   CarrierItems faceItems[4], cellItems;
   bool         fresh;
   for (PetscInt c = 0; c < m.NumCells(); ++c) {
