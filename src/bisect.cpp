@@ -689,37 +689,60 @@ PetscErrorCode FinePoints(const Coarse &m, const Children &ch, const std::vector
     if (cellItems.nKeys) PetscCall(Place(cellItems, false, -1, 2, inCell, f.edgeVerts, f.edgeCarrier, f.childEdge.data(), &fresh));
     if (m.dim == 2) continue;
     // Triangles, each with its edges (a, b), (b, c), (c, a) from a child that has it.
+    const auto keyOf = [&](PetscInt slot) {
+      const PetscInt *r = kRefFace[slot % 4], *v = cv + 4 * (slot / 4);
+      Key             key = {v[r[0]], v[r[1]], v[r[2]]};
+      if (key[0] > key[1]) std::swap(key[0], key[1]);
+      if (key[1] > key[2]) std::swap(key[1], key[2]);
+      if (key[0] > key[1]) std::swap(key[0], key[1]);
+      return key;
+    };
+    const auto edgesOf = [&](const Key &key, PetscInt slot) {
+      const PetscInt t = slot / 4, *r = kRefFace[slot % 4], *v = cv + 4 * t, j = f.childTri[slot];
+      int            bit[3]; // of a, b, c: their vertex in the child
+      for (PetscInt i = 0; i < 3; ++i) bit[v[r[i]] == key[0] ? 0 : v[r[i]] == key[1] ? 1 : 2] = 1 << r[i];
+      for (PetscInt e = 0; e < 3; ++e) f.triEdges[3 * j + e] = f.childEdge[6 * t + kPairOf[bit[e] | bit[(e + 1) % 3]]];
+    };
+    if (ch.start[c + 1] - ch.start[c] == 1) { // an uncut cell (most of them): its faces are whole coarse faces
+      const PetscInt t = ch.start[c];
+      for (PetscInt k = 0; k < 4; ++k) {
+        const PetscInt *r = kRefFace[k], F = m.cellFaces[4 * c + kOpposite[on[4 * t + r[0]] | on[4 * t + r[1]] | on[4 * t + r[2]]]];
+        const Key       key = keyOf(4 * t + k);
+        PetscInt       &first = inFaceT[F - m.fS];
+        if (first < 0) {
+          first = (PetscInt)f.triCarrier.size();
+          f.triCarrier.push_back(F), f.triVerts.insert(f.triVerts.end(), key.begin(), key.end()), f.triEdges.resize(3 * (first + 1));
+          f.childTri[4 * t + k] = first;
+          edgesOf(key, 4 * t + k);
+        } else {
+          PetscCheck(std::equal(key.begin(), key.end(), &f.triVerts[3 * first]) && (first + 1 == (PetscInt)f.triCarrier.size() || f.triCarrier[first + 1] != F), PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: coarse point %" PetscInt_FMT " is cut differently in its two cells", F);
+          f.childTri[4 * t + k] = first;
+        }
+      }
+      continue;
+    }
     for (auto &items : faceItems) items.Clear();
     cellItems.Clear();
     for (PetscInt t = ch.start[c]; t < ch.start[c + 1]; ++t)
       for (PetscInt k = 0; k < 4; ++k) {
-        const PetscInt *r = kRefFace[k], *v = cv + 4 * t;
-        Key             key = {v[r[0]], v[r[1]], v[r[2]]};
-        if (key[0] > key[1]) std::swap(key[0], key[1]);
-        if (key[1] > key[2]) std::swap(key[1], key[2]);
-        if (key[0] > key[1]) std::swap(key[0], key[1]);
-        const int bits = on[4 * t + r[0]] | on[4 * t + r[1]] | on[4 * t + r[2]];
-        if (kOpposite[bits] >= 0) faceItems[kOpposite[bits]].Add(key, 4 * t + k);
-        else cellItems.Add(key, 4 * t + k);
+        const PetscInt *r    = kRefFace[k];
+        const int       bits = on[4 * t + r[0]] | on[4 * t + r[1]] | on[4 * t + r[2]];
+        if (kOpposite[bits] >= 0) faceItems[kOpposite[bits]].Add(keyOf(4 * t + k), 4 * t + k);
+        else cellItems.Add(keyOf(4 * t + k), 4 * t + k);
       }
-    const auto edgesOf = [&](const CarrierItems &items) {
-      for (int o = 0; o < items.nOcc; ++o) {
-        const Key     &key = items.keys[items.item[o]];
-        const PetscInt slot = items.slot[o], t = slot / 4, *r = kRefFace[slot % 4], *v = cv + 4 * t, j = f.childTri[slot];
-        int            bit[3]; // of a, b, c: their vertex in the child
-        for (PetscInt i = 0; i < 3; ++i) bit[v[r[i]] == key[0] ? 0 : v[r[i]] == key[1] ? 1 : 2] = 1 << r[i];
-        for (PetscInt e = 0; e < 3; ++e) f.triEdges[3 * j + e] = f.childEdge[6 * t + kPairOf[bit[e] | bit[(e + 1) % 3]]];
-      }
+    const auto allEdgesOf = [&](const CarrierItems &items) {
+      f.triEdges.resize(f.triVerts.size());
+      for (int o = 0; o < items.nOcc; ++o) edgesOf(items.keys[items.item[o]], items.slot[o]);
     };
     for (PetscInt i = 0; i < 4; ++i) {
       const PetscInt F = m.cellFaces[4 * c + i];
       PetscCall(Place(faceItems[i], true, F, 3, inFaceT[F - m.fS], f.triVerts, f.triCarrier, f.childTri.data(), &fresh));
-      if (fresh) f.triEdges.resize(f.triVerts.size()), edgesOf(faceItems[i]);
+      if (fresh) allEdgesOf(faceItems[i]);
     }
     if (cellItems.nKeys) {
       inCell = -1;
       PetscCall(Place(cellItems, false, -1, 3, inCell, f.triVerts, f.triCarrier, f.childTri.data(), &fresh));
-      f.triEdges.resize(f.triVerts.size()), edgesOf(cellItems);
+      allEdgesOf(cellItems);
     }
   }
   f.ne = (PetscInt)f.edgeCarrier.size(), f.nt = (PetscInt)f.triCarrier.size();
