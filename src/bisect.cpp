@@ -564,15 +564,34 @@ struct CarrierItems {
   }
 };
 
-// Numbers the items of one carrier and writes the numbers into their slots. first: the carrier's first
-// number, -1 until a cell meets it (then the items are new: they get numbers from the end of `carriers`
-// on, their vertices (nvk each) and carrier, and *fresh is set); else the carrier's other cell numbered
-// them, which must have met the same items. A carrier shared by two cells (a coarse face) numbers its
-// items in the order of their vertices, so that both give each the same number.
+// Numbers the n items of one carrier, given in the order of their numbers (nvk vertices each). first: the
+// carrier's first number, -1 until a cell meets it (then the items are new: they get numbers from the
+// end of `carriers` on, their vertices and carrier, and *fresh is set); else the carrier's other cell
+// numbered them, which must have met the same items.
+PetscErrorCode NumberItems(const CarrierItems::Key *items, int n, PetscInt carrier, PetscInt nvk, PetscInt &first, std::vector<PetscInt> &verts, std::vector<PetscInt> &carriers, bool *fresh)
+{
+  PetscFunctionBeginUser;
+  *fresh = first < 0;
+  if (first < 0) {
+    first = (PetscInt)carriers.size();
+    carriers.resize(first + n, carrier);
+    for (int i = 0; i < n; ++i) verts.insert(verts.end(), items[i].begin(), items[i].begin() + nvk);
+  } else {
+    bool same = first + n == (PetscInt)carriers.size() || carriers[first + n] != carrier;
+    for (int i = 0; i < n && same; ++i) same = carriers[first + i] == carrier && std::equal(items[i].begin(), items[i].begin() + nvk, &verts[nvk * (first + i)]);
+    PetscCheck(same, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: coarse point %" PetscInt_FMT " is cut differently in its two cells", carrier);
+  }
+  PetscFunctionReturn(0);
+}
+
+// Numbers the items of one carrier (NumberItems) and writes the numbers into their slots. A carrier shared
+// by two cells (a coarse face) numbers its items in the order of their vertices, so that both give each
+// the same number; a cell's interior in the order met.
 PetscErrorCode Place(const CarrierItems &items, bool shared, PetscInt carrier, PetscInt nvk, PetscInt &first, std::vector<PetscInt> &verts, std::vector<PetscInt> &carriers, PetscInt *slots, bool *fresh)
 {
-  const int n = items.nKeys;
-  int       rank[CarrierItems::kMaxOcc]; // of each item in the carrier
+  const int          n = items.nKeys;
+  int                rank[CarrierItems::kMaxOcc]; // of each item in the carrier
+  CarrierItems::Key  ordered[CarrierItems::kMaxOcc];
   PetscFunctionBeginUser;
   for (int i = 0; i < n; ++i) {
     rank[i] = i;
@@ -580,18 +599,9 @@ PetscErrorCode Place(const CarrierItems &items, bool shared, PetscInt carrier, P
       rank[i] = 0;
       for (int j = 0; j < n; ++j) rank[i] += items.keys[j] < items.keys[i];
     }
+    ordered[rank[i]] = items.keys[i];
   }
-  *fresh = first < 0;
-  if (first < 0) {
-    first = (PetscInt)carriers.size();
-    carriers.resize(first + n, carrier);
-    verts.resize(nvk * (first + n));
-    for (int i = 0; i < n; ++i) std::copy(items.keys[i].begin(), items.keys[i].begin() + nvk, &verts[nvk * (first + rank[i])]);
-  } else {
-    bool same = first + n == (PetscInt)carriers.size() || carriers[first + n] != carrier;
-    for (int i = 0; i < n && same; ++i) same = carriers[first + rank[i]] == carrier && std::equal(items.keys[i].begin(), items.keys[i].begin() + nvk, &verts[nvk * (first + rank[i])]);
-    PetscCheck(same, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: coarse point %" PetscInt_FMT " is cut differently in its two cells", carrier);
-  }
+  PetscCall(NumberItems(ordered, n, carrier, nvk, first, verts, carriers, fresh));
   for (int o = 0; o < items.nOcc; ++o) slots[items.slot[o]] = first + rank[items.item[o]];
   PetscFunctionReturn(0);
 }
@@ -708,16 +718,9 @@ PetscErrorCode FinePoints(const Coarse &m, const Children &ch, const std::vector
       for (PetscInt k = 0; k < 4; ++k) {
         const PetscInt *r = kRefFace[k], F = m.cellFaces[4 * c + kOpposite[on[4 * t + r[0]] | on[4 * t + r[1]] | on[4 * t + r[2]]]];
         const Key       key = keyOf(4 * t + k);
-        PetscInt       &first = inFaceT[F - m.fS];
-        if (first < 0) {
-          first = (PetscInt)f.triCarrier.size();
-          f.triCarrier.push_back(F), f.triVerts.insert(f.triVerts.end(), key.begin(), key.end()), f.triEdges.resize(3 * (first + 1));
-          f.childTri[4 * t + k] = first;
-          edgesOf(key, 4 * t + k);
-        } else {
-          PetscCheck(std::equal(key.begin(), key.end(), &f.triVerts[3 * first]) && (first + 1 == (PetscInt)f.triCarrier.size() || f.triCarrier[first + 1] != F), PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: coarse point %" PetscInt_FMT " is cut differently in its two cells", F);
-          f.childTri[4 * t + k] = first;
-        }
+        PetscCall(NumberItems(&key, 1, F, 3, inFaceT[F - m.fS], f.triVerts, f.triCarrier, &fresh));
+        f.childTri[4 * t + k] = inFaceT[F - m.fS];
+        if (fresh) f.triEdges.resize(f.triVerts.size()), edgesOf(key, 4 * t + k);
       }
       continue;
     }
