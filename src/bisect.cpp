@@ -537,11 +537,19 @@ struct Fine {
   std::vector<PetscInt> childEdge, childTri;     // per child: the edge of pair k, the triangle of face k (3D)
   std::vector<PetscInt> parentOf;                // per child: the coarse cell (as c - cStart)
   std::vector<PetscInt> childVerts;              // per child: its fine vertices (in Children::verts' order)
-  std::vector<PetscInt> triEdges;                // per triangle (a, b, c): its edges (a, b), (b, c), (c, a)
+  std::vector<PetscInt> triSlot;                 // per triangle: a child face that is it (4 * child + face)
   PetscInt              Vertex(PetscInt i) const { return nc + i; }
   PetscInt              Tri(PetscInt j) const { return nc + nv + j; }
   PetscInt              Edge(PetscInt j) const { return nc + nv + nt + j; }
   PetscInt              End() const { return nc + nv + nt + ne; }
+  // The edges (a, b), (b, c), (c, a) of triangle j (a < b < c), from a child that has it.
+  void TriEdges(PetscInt j, PetscInt edge[3]) const
+  {
+    const PetscInt slot = triSlot[j], t = slot / 4, *r = kRefFace[slot % 4], *v = &childVerts[4 * t], *abc = &triVerts[3 * j];
+    int            bit[3]; // of a, b, c: their vertex in the child
+    for (PetscInt i = 0; i < 3; ++i) bit[v[r[i]] == abc[0] ? 0 : v[r[i]] == abc[1] ? 1 : 2] = 1 << r[i];
+    for (PetscInt e = 0; e < 3; ++e) edge[e] = childEdge[6 * t + kPairOf[bit[e] | bit[(e + 1) % 3]]];
+  }
 };
 
 // The distinct edges or triangles (their vertices sorted; 2 or 3 used) that the children of one coarse
@@ -615,8 +623,8 @@ PetscErrorCode Place(const CarrierItems &items, bool shared, PetscInt carrier, P
 // face's cells on this rank, which both number the face's items in the order of their vertices; inside a
 // cell by that cell's children only. Edges and triangles are numbered as the children, coarse cell by
 // coarse cell, first meet them, which keeps the points of a region of the mesh close in the chart (and
-// the rows of a Crouzeix-Raviart matrix close).
-PetscErrorCode FinePoints(const Coarse &m, const Children &ch, const std::vector<char> &mark, const std::vector<PetscInt> &gnum, Fine &f)
+// the rows of a Crouzeix-Raviart matrix close). ch.verts becomes f.childVerts.
+PetscErrorCode FinePoints(const Coarse &m, Children &ch, const std::vector<char> &mark, const std::vector<PetscInt> &gnum, Fine &f)
 {
   using Key         = CarrierItems::Key;
   const PetscInt nb = ch.nv, nce = m.nce;
@@ -641,8 +649,8 @@ PetscErrorCode FinePoints(const Coarse &m, const Children &ch, const std::vector
   f.parentOf.resize(f.nc);
   for (PetscInt c = 0; c < m.NumCells(); ++c)
     for (PetscInt k = ch.start[c]; k < ch.start[c + 1]; ++k) f.parentOf[k] = c;
-  f.childVerts.resize(ch.verts.size());
-  for (size_t i = 0; i < ch.verts.size(); ++i) f.childVerts[i] = f.vertexOf[ch.verts[i]];
+  for (PetscInt &v : ch.verts) v = f.vertexOf[v]; // in place (ch.verts is not read after this): no fresh memory
+  f.childVerts.swap(ch.verts);
   const PetscInt *cv = f.childVerts.data();
   const char     *on = ch.on.data();
 
@@ -651,9 +659,9 @@ PetscErrorCode FinePoints(const Coarse &m, const Children &ch, const std::vector
   std::vector<PetscInt> onEdge(m.NumEdges(), -1), inFaceE(m.dim == 3 ? m.fE - m.fS : 0, -1), inFaceT(inFaceE);
   f.childEdge.assign(nce * f.nc, -1);
   f.childTri.assign(m.dim == 3 ? 4 * f.nc : 0, -1);
-  f.edgeVerts.clear(), f.edgeCarrier.clear(), f.triVerts.clear(), f.triCarrier.clear(), f.triEdges.clear();
+  f.edgeVerts.clear(), f.edgeCarrier.clear(), f.triVerts.clear(), f.triCarrier.clear(), f.triSlot.clear();
   f.edgeVerts.reserve(2 * nce * f.nc), f.edgeCarrier.reserve(nce * f.nc); // bounds: pages beyond the edges stay untouched
-  if (m.dim == 3) f.triVerts.reserve(12 * f.nc), f.triEdges.reserve(12 * f.nc), f.triCarrier.reserve(4 * f.nc);
+  if (m.dim == 3) f.triVerts.reserve(12 * f.nc), f.triSlot.reserve(4 * f.nc), f.triCarrier.reserve(4 * f.nc);
   CarrierItems faceItems[4], cellItems;
   bool         fresh;
   for (PetscInt c = 0; c < m.NumCells(); ++c) {
@@ -698,7 +706,7 @@ PetscErrorCode FinePoints(const Coarse &m, const Children &ch, const std::vector
     PetscInt inCell = -1;
     if (cellItems.nKeys) PetscCall(Place(cellItems, false, -1, 2, inCell, f.edgeVerts, f.edgeCarrier, f.childEdge.data(), &fresh));
     if (m.dim == 2) continue;
-    // Triangles, each with its edges (a, b), (b, c), (c, a) from a child that has it.
+    // Triangles, each with a child face that is it (for its edges, Fine::TriEdges).
     const auto keyOf = [&](PetscInt slot) {
       const PetscInt *r = kRefFace[slot % 4], *v = cv + 4 * (slot / 4);
       Key             key = {v[r[0]], v[r[1]], v[r[2]]};
@@ -707,12 +715,6 @@ PetscErrorCode FinePoints(const Coarse &m, const Children &ch, const std::vector
       if (key[0] > key[1]) std::swap(key[0], key[1]);
       return key;
     };
-    const auto edgesOf = [&](const Key &key, PetscInt slot) {
-      const PetscInt t = slot / 4, *r = kRefFace[slot % 4], *v = cv + 4 * t, j = f.childTri[slot];
-      int            bit[3]; // of a, b, c: their vertex in the child
-      for (PetscInt i = 0; i < 3; ++i) bit[v[r[i]] == key[0] ? 0 : v[r[i]] == key[1] ? 1 : 2] = 1 << r[i];
-      for (PetscInt e = 0; e < 3; ++e) f.triEdges[3 * j + e] = f.childEdge[6 * t + kPairOf[bit[e] | bit[(e + 1) % 3]]];
-    };
     if (ch.start[c + 1] - ch.start[c] == 1) { // an uncut cell (most of them): its faces are whole coarse faces
       const PetscInt t = ch.start[c];
       for (PetscInt k = 0; k < 4; ++k) {
@@ -720,7 +722,7 @@ PetscErrorCode FinePoints(const Coarse &m, const Children &ch, const std::vector
         const Key       key = keyOf(4 * t + k);
         PetscCall(NumberItems(&key, 1, F, 3, inFaceT[F - m.fS], f.triVerts, f.triCarrier, &fresh));
         f.childTri[4 * t + k] = inFaceT[F - m.fS];
-        if (fresh) f.triEdges.resize(f.triVerts.size()), edgesOf(key, 4 * t + k);
+        if (fresh) f.triSlot.push_back(4 * t + k);
       }
       continue;
     }
@@ -733,19 +735,19 @@ PetscErrorCode FinePoints(const Coarse &m, const Children &ch, const std::vector
         if (kOpposite[bits] >= 0) faceItems[kOpposite[bits]].Add(keyOf(4 * t + k), 4 * t + k);
         else cellItems.Add(keyOf(4 * t + k), 4 * t + k);
       }
-    const auto allEdgesOf = [&](const CarrierItems &items) {
-      f.triEdges.resize(f.triVerts.size());
-      for (int o = 0; o < items.nOcc; ++o) edgesOf(items.keys[items.item[o]], items.slot[o]);
+    const auto slotsOf = [&](const CarrierItems &items) {
+      f.triSlot.resize(f.triCarrier.size());
+      for (int o = 0; o < items.nOcc; ++o) f.triSlot[f.childTri[items.slot[o]]] = items.slot[o];
     };
     for (PetscInt i = 0; i < 4; ++i) {
       const PetscInt F = m.cellFaces[4 * c + i];
       PetscCall(Place(faceItems[i], true, F, 3, inFaceT[F - m.fS], f.triVerts, f.triCarrier, f.childTri.data(), &fresh));
-      if (fresh) allEdgesOf(faceItems[i]);
+      if (fresh) slotsOf(faceItems[i]);
     }
     if (cellItems.nKeys) {
       inCell = -1;
       PetscCall(Place(cellItems, false, -1, 3, inCell, f.triVerts, f.triCarrier, f.childTri.data(), &fresh));
-      allEdgesOf(cellItems);
+      slotsOf(cellItems);
     }
   }
   f.ne = (PetscInt)f.edgeCarrier.size(), f.nt = (PetscInt)f.triCarrier.size();
@@ -804,8 +806,11 @@ PetscErrorCode BuildPlex(DM dm, const Fine &f)
   PetscCheck(size == nb * f.nc + 3 * f.nt + 2 * f.ne, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: %" PetscInt_FMT " cone entries", size);
   PetscCall(CellCones(f, mesh->cones, mesh->coneOrientations));
   PetscInt *tcone = mesh->cones + nb * f.nc, *tornt = mesh->coneOrientations + nb * f.nc;
-  for (PetscInt j = 0; j < f.nt; ++j)
-    for (PetscInt e = 0; e < 3; ++e) tcone[3 * j + e] = f.Edge(f.triEdges[3 * j + e]), tornt[3 * j + e] = e == 2 ? -1 : 0;
+  for (PetscInt j = 0; j < f.nt; ++j) {
+    PetscInt edge[3];
+    f.TriEdges(j, edge);
+    for (PetscInt e = 0; e < 3; ++e) tcone[3 * j + e] = f.Edge(edge[e]), tornt[3 * j + e] = e == 2 ? -1 : 0;
+  }
   PetscInt *econe = tcone + 3 * f.nt, *eornt = tornt + 3 * f.nt;
   for (PetscInt j = 0; j < 2 * f.ne; ++j) econe[j] = f.Vertex(f.edgeVerts[j]), eornt[j] = 0;
   PetscCall(SymmetrizeCones(dm));
