@@ -35,8 +35,8 @@
 //
 // The fine DMPlex is built directly, as refine.cpp builds the uniform one (PETSc's DMPlexInterpolate of
 // the children's cell list costs 3 s for 300 k tetrahedra, ten times the rest): every child stays on its
-// parent's rank; its edges and faces are found by sorting their vertex sets; each fine point knows the
-// coarse point it lies in (its carrier: a vertex, edge, face, or the cell itself). The fine points in a
+// parent's rank; each fine point knows the coarse point it lies in (its carrier: a vertex, edge, face, or
+// the cell itself), by which the children's edges and faces are told apart (FinePoints). The fine points in a
 // shared coarse point are shared with the same ranks, and both sides list them in the same order (by
 // global vertex numbers), which gives the point star forest; the vertex order stored in every edge and
 // face is by global vertex numbers too, so shared points have the same cones on every rank.
