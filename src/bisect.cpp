@@ -585,7 +585,8 @@ PetscErrorCode NumberItems(const CarrierItems::Key *items, int n, PetscInt carri
     carriers.resize(first + n, carrier);
     for (int i = 0; i < n; ++i) verts.insert(verts.end(), items[i].begin(), items[i].begin() + nvk);
   } else {
-    bool same = first + n == (PetscInt)carriers.size() || carriers[first + n] != carrier;
+    const PetscInt end  = first + n; // the other cell's items end there too: no more of this carrier follow
+    bool           same = end == (PetscInt)carriers.size() || (end < (PetscInt)carriers.size() && carriers[end] != carrier);
     for (int i = 0; i < n && same; ++i) same = carriers[first + i] == carrier && std::equal(items[i].begin(), items[i].begin() + nvk, &verts[nvk * (first + i)]);
     PetscCheck(same, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: coarse point %" PetscInt_FMT " is cut differently in its two cells", carrier);
   }
