@@ -665,6 +665,20 @@ PetscErrorCode FinePoints(const Coarse &m, Children &ch, const std::vector<char>
   if (m.dim == 3) f.triVerts.reserve(12 * f.nc), f.triSlot.reserve(4 * f.nc), f.triCarrier.reserve(4 * f.nc);
   CarrierItems faceItems[4], cellItems;
   bool         fresh;
+  // A child face's vertices, sorted (slot: 4 * child + face), and the child faces the new triangles among
+  // `items` keep (see Fine::TriEdges).
+  const auto keyOf = [&](PetscInt slot) {
+    const PetscInt *r = kRefFace[slot % 4], *v = cv + 4 * (slot / 4);
+    Key             key = {v[r[0]], v[r[1]], v[r[2]]};
+    if (key[0] > key[1]) std::swap(key[0], key[1]);
+    if (key[1] > key[2]) std::swap(key[1], key[2]);
+    if (key[0] > key[1]) std::swap(key[0], key[1]);
+    return key;
+  };
+  const auto slotsOf = [&](const CarrierItems &items) {
+    f.triSlot.resize(f.triCarrier.size());
+    for (int o = 0; o < items.nOcc; ++o) f.triSlot[f.childTri[items.slot[o]]] = items.slot[o];
+  };
   for (PetscInt c = 0; c < m.NumCells(); ++c) {
     // Edges: those on coarse edges at once, the others by carrier.
     PetscCheck(ch.start[c + 1] - ch.start[c] <= 8, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: %" PetscInt_FMT " children", ch.start[c + 1] - ch.start[c]);
@@ -708,14 +722,6 @@ PetscErrorCode FinePoints(const Coarse &m, Children &ch, const std::vector<char>
     if (cellItems.nKeys) PetscCall(Place(cellItems, false, -1, 2, inCell, f.edgeVerts, f.edgeCarrier, f.childEdge.data(), &fresh));
     if (m.dim == 2) continue;
     // Triangles, each with a child face that is it (for its edges, Fine::TriEdges).
-    const auto keyOf = [&](PetscInt slot) {
-      const PetscInt *r = kRefFace[slot % 4], *v = cv + 4 * (slot / 4);
-      Key             key = {v[r[0]], v[r[1]], v[r[2]]};
-      if (key[0] > key[1]) std::swap(key[0], key[1]);
-      if (key[1] > key[2]) std::swap(key[1], key[2]);
-      if (key[0] > key[1]) std::swap(key[0], key[1]);
-      return key;
-    };
     if (ch.start[c + 1] - ch.start[c] == 1) { // an uncut cell (most of them): its faces are whole coarse faces
       const PetscInt t = ch.start[c];
       for (PetscInt k = 0; k < 4; ++k) {
@@ -736,10 +742,6 @@ PetscErrorCode FinePoints(const Coarse &m, Children &ch, const std::vector<char>
         if (kOpposite[bits] >= 0) faceItems[kOpposite[bits]].Add(keyOf(4 * t + k), 4 * t + k);
         else cellItems.Add(keyOf(4 * t + k), 4 * t + k);
       }
-    const auto slotsOf = [&](const CarrierItems &items) {
-      f.triSlot.resize(f.triCarrier.size());
-      for (int o = 0; o < items.nOcc; ++o) f.triSlot[f.childTri[items.slot[o]]] = items.slot[o];
-    };
     for (PetscInt i = 0; i < 4; ++i) {
       const PetscInt F = m.cellFaces[4 * c + i];
       PetscCall(Place(faceItems[i], true, F, 3, inFaceT[F - m.fS], f.triVerts, f.triCarrier, f.childTri.data(), &fresh));

@@ -132,7 +132,6 @@ double Nonzeros(const MeshCounts &m, Element e)
   return m.dim == 2 ? m.e + 6 * m.c : m.f + 12 * m.c;
 }
 
-
 PetscErrorCode CheckSizes(MPI_Comm comm, const MeshOptions &o, const MeshCounts &coarse, Element element, const StudyOptions &study)
 {
   PetscMPIInt size;
