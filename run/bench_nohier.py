@@ -47,7 +47,7 @@ def main(bench_args, extra):
     ap = argparse.ArgumentParser(prog="run/bench --nohier")
     ap.add_argument("--nohier-n2", default=None, help="squares per side of the Gmsh files (default 1024, --quick 64)")
     args, extra = ap.parse_known_args(extra)
-    sizes = [int(n) for n in (args.nohier_n2 or ("64" if bench_args.quick else "1024")).split(",")]
+    sizes = launch.list_option(ap, "--nohier-n2", args.nohier_n2 or ("64" if bench_args.quick else "1024"), convert=launch.count)
     elements = bench_args.elements.split(",")
     rows = []
     for N in sizes:

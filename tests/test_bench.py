@@ -135,7 +135,9 @@ with tempfile.TemporaryDirectory() as tmp:
     for args, message in [(["--elements", "q1"], "--elements q1: 'q1' is not one of p1, cr"), (["--dims", "4"], "--dims 4: '4' is not one of 2, 3"),
                           (["--elements", "cr,cr"], "'cr' is given twice"), (["--n2", "32,x"], "--n2 32,x: 'x' is not an integer"),
                           (["--n2", "32,0"], "--n2 32,0: 0 is not a positive count"), (["--ranks", "0"], "--ranks: 0 is not a positive count"),
-                          (["--estimate", "--est-n2", "-4"], "--est-n2: -4 is not a positive count")]:
+                          (["--estimate", "--est-n2", "-4"], "--est-n2: -4 is not a positive count"),
+                          (["--nohier", "--nohier-n2", "32,0"], "--nohier-n2 32,0: 0 is not a positive count"),
+                          (["--nohier", "--nohier-n2", "3x"], "--nohier-n2 3x: '3x' is not an integer")]:
         p = bench(tmp, *args)
         c.check(p.returncode == 2 and message in p.stderr and not os.listdir(tmp), "%s: exit %d, %s, nothing written" % (" ".join(args), p.returncode, p.stderr.strip().splitlines()[-1:]))
 
