@@ -325,6 +325,27 @@ PetscErrorCode StiffnessFill::Begin(const Space &space, Mat A)
   PetscFunctionReturn(0);
 }
 
+// The place of key among a row's n sorted columns, if it is there (else a place whose column is not key).
+// Short rows (2D, and CR: 5 to 8 columns) are scanned, which measured faster there; longer ones (3D P1:
+// about 15) by a binary search whose steps depend on n alone, the comparison choosing the half by a
+// conditional move: the scan read half such a row per entry and mispredicted where it stopped, which made
+// the element matrices' addition the largest part of the 3D P1 assembly.
+static inline PetscInt FindColumn(const PetscInt *cols, PetscInt n, PetscInt key)
+{
+  if (n <= 8) {
+    PetscInt k = 0;
+    while (k < n - 1 && cols[k] != key) ++k;
+    return k;
+  }
+  const PetscInt *base = cols;
+  while (n > 1) {
+    const PetscInt half = n / 2;
+    base = base[half] <= key ? base + half : base;
+    n -= half;
+  }
+  return (PetscInt)(base - cols);
+}
+
 PetscErrorCode StiffnessFill::Add(const PetscInt *dofs, const PetscReal *Ke)
 {
   PetscInt row[4], block[4], key[4]; // each DOF's owned row, and its column: block and index in that block
@@ -345,9 +366,8 @@ PetscErrorCode StiffnessFill::Add(const PetscInt *dofs, const PetscReal *Ke)
     for (PetscInt j = 0; j < nb_; ++j) {
       const PetscInt  b = block[j], start = ia_[b][r], n = ia_[b][r + 1] - start;
       const PetscInt *cols = ja_[b] + start;
-      PetscInt        k    = 0;
-      while (k < n && cols[k] != key[j]) ++k;
-      PetscCheck(k < n, PETSC_COMM_SELF, PETSC_ERR_PLIB, "column %" PetscInt_FMT " is not in the pattern of row %" PetscInt_FMT, global_[dofs[j]], global_[dofs[i]]);
+      const PetscInt  k    = FindColumn(cols, n, key[j]);
+      PetscCheck(n > 0 && cols[k] == key[j], PETSC_COMM_SELF, PETSC_ERR_PLIB, "column %" PetscInt_FMT " is not in the pattern of row %" PetscInt_FMT, global_[dofs[j]], global_[dofs[i]]);
       va_[b][start + k] += Ke[i * nb_ + j];
     }
   }
