@@ -679,6 +679,30 @@ PetscErrorCode FinePoints(const Coarse &m, Children &ch, const std::vector<char>
     f.triSlot.resize(f.triCarrier.size());
     for (int o = 0; o < items.nOcc; ++o) f.triSlot[f.childTri[items.slot[o]]] = items.slot[o];
   };
+  // The edges or triangles of cell c's children that are not whole coarse points, by carrier: a coarse
+  // face of c (3D), or c's interior.
+  const auto group = [&](const Key &key, PetscInt slot, int bits) {
+    if (m.dim == 3 && kOpposite[bits] >= 0) faceItems[kOpposite[bits]].Add(key, slot);
+    else cellItems.Add(key, slot);
+  };
+  // Numbers the grouped items (nvk vertices each) into verts, carriers and slots; inFace: the first number of
+  // each coarse face's items. onFresh(items) for each group numbered for the first time.
+  const auto placeGroups = [&](PetscInt c, PetscInt nvk, std::vector<PetscInt> &inFace, std::vector<PetscInt> &verts, std::vector<PetscInt> &carriers, PetscInt *slots,
+                               const auto &onFresh) -> PetscErrorCode {
+    PetscFunctionBeginUser;
+    for (PetscInt i = 0; i < 4 && m.dim == 3; ++i) {
+      if (!faceItems[i].nKeys) continue;
+      const PetscInt F = m.cellFaces[4 * c + i];
+      PetscCall(Place(faceItems[i], true, F, nvk, inFace[F - m.fS], verts, carriers, slots, &fresh));
+      if (fresh) onFresh(faceItems[i]);
+    }
+    if (cellItems.nKeys) {
+      PetscInt inCell = -1;
+      PetscCall(Place(cellItems, false, -1, nvk, inCell, verts, carriers, slots, &fresh));
+      onFresh(cellItems);
+    }
+    PetscFunctionReturn(0);
+  };
   for (PetscInt c = 0; c < m.NumCells(); ++c) {
     // Edges: those on coarse edges at once, the others by carrier.
     PetscCheck(ch.start[c + 1] - ch.start[c] <= 8, PETSC_COMM_SELF, PETSC_ERR_PLIB, "RefineMarkedBisection: %" PetscInt_FMT " children", ch.start[c + 1] - ch.start[c]);
@@ -706,20 +730,9 @@ PetscErrorCode FinePoints(const Coarse &m, Children &ch, const std::vector<char>
         const PetscInt a = cv[nb * t + kPair[k][0]], b = cv[nb * t + kPair[k][1]], slot = nce * t + k;
         const int      bits = on[nb * t + kPair[k][0]] | on[nb * t + kPair[k][1]], p = kPairOf[bits];
         if (p >= 0) f.childEdge[slot] = onFirst[p] + (halved[p] && a != firstVertex[p] && b != firstVertex[p]);
-        else {
-          const Key key = {std::min(a, b), std::max(a, b), -1};
-          if (m.dim == 3 && kOpposite[bits] >= 0) faceItems[kOpposite[bits]].Add(key, slot);
-          else cellItems.Add(key, slot);
-        }
+        else group({std::min(a, b), std::max(a, b), -1}, slot, bits);
       }
-    if (m.dim == 3)
-      for (PetscInt i = 0; i < 4; ++i) {
-        if (!faceItems[i].nKeys) continue;
-        const PetscInt F = m.cellFaces[4 * c + i];
-        PetscCall(Place(faceItems[i], true, F, 2, inFaceE[F - m.fS], f.edgeVerts, f.edgeCarrier, f.childEdge.data(), &fresh));
-      }
-    PetscInt inCell = -1;
-    if (cellItems.nKeys) PetscCall(Place(cellItems, false, -1, 2, inCell, f.edgeVerts, f.edgeCarrier, f.childEdge.data(), &fresh));
+    PetscCall(placeGroups(c, 2, inFaceE, f.edgeVerts, f.edgeCarrier, f.childEdge.data(), [](const CarrierItems &) {}));
     if (m.dim == 2) continue;
     // Triangles, each with a child face that is it (for its edges, Fine::TriEdges).
     if (ch.start[c + 1] - ch.start[c] == 1) { // an uncut cell (most of them): its faces are whole coarse faces
@@ -737,21 +750,10 @@ PetscErrorCode FinePoints(const Coarse &m, Children &ch, const std::vector<char>
     cellItems.Clear();
     for (PetscInt t = ch.start[c]; t < ch.start[c + 1]; ++t)
       for (PetscInt k = 0; k < 4; ++k) {
-        const PetscInt *r    = kRefFace[k];
-        const int       bits = on[4 * t + r[0]] | on[4 * t + r[1]] | on[4 * t + r[2]];
-        if (kOpposite[bits] >= 0) faceItems[kOpposite[bits]].Add(keyOf(4 * t + k), 4 * t + k);
-        else cellItems.Add(keyOf(4 * t + k), 4 * t + k);
+        const PetscInt *r = kRefFace[k];
+        group(keyOf(4 * t + k), 4 * t + k, on[4 * t + r[0]] | on[4 * t + r[1]] | on[4 * t + r[2]]);
       }
-    for (PetscInt i = 0; i < 4; ++i) {
-      const PetscInt F = m.cellFaces[4 * c + i];
-      PetscCall(Place(faceItems[i], true, F, 3, inFaceT[F - m.fS], f.triVerts, f.triCarrier, f.childTri.data(), &fresh));
-      if (fresh) slotsOf(faceItems[i]);
-    }
-    if (cellItems.nKeys) {
-      inCell = -1;
-      PetscCall(Place(cellItems, false, -1, 3, inCell, f.triVerts, f.triCarrier, f.childTri.data(), &fresh));
-      slotsOf(cellItems);
-    }
+    PetscCall(placeGroups(c, 3, inFaceT, f.triVerts, f.triCarrier, f.childTri.data(), slotsOf));
   }
   f.ne = (PetscInt)f.edgeCarrier.size(), f.nt = (PetscInt)f.triCarrier.size();
   PetscFunctionReturn(0);
