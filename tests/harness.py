@@ -32,6 +32,11 @@ def scene_with(name, token, value, directory):
     return ["-options_file", path]
 
 
+def adapted_meshes(s):
+    """The sequence of adapted meshes of a run's summary: cells, DOFs and marked cells of every step."""
+    return [(r["cells"], r["dofs"], r["marked"]) for r in s["adapt"]]
+
+
 def rel(a, b):
     """Relative difference of a and b."""
     return abs(a - b) / max(abs(a), abs(b), 1e-300)

@@ -21,7 +21,7 @@ import math
 import os
 import tempfile
 
-from harness import ENV, ROOT, Checker, run, scene
+from harness import ENV, ROOT, Checker, adapted_meshes, run, scene
 
 c = Checker()
 ENV.pop("SCOTCH_PTHREAD_NUMBER", None)  # the executable's own setting is what is tested
@@ -40,11 +40,6 @@ def slope(dofs, values):
     xs, ys = [math.log(d) for d in dofs], [math.log(v) for v in values]
     mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
     return sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / sum((x - mx) ** 2 for x in xs)
-
-
-def adapted_meshes(s):
-    """The sequence of adapted meshes of a run's summary: cells, DOFs and marked cells of every step."""
-    return [(r["cells"], r["dofs"], r["marked"]) for r in s["adapt"]]
 
 
 def kkt_ok(tag, s):
@@ -156,13 +151,7 @@ for n, s in zip((2, 3), runs[1:]):
                 n, [m[0] for m in adapted_meshes(s)], [m[0] for m in adapted_meshes(runs[0])], deta))
     kkt_ok("stiff-stretched-2d cr, %d ranks" % n, s)
 
-# Scaling: a load 3.7e-3 or 1e10 times as large scales every indicator alike, and the marking with it (mark.h).
-meshes = {}
-for factor in ["1", "3.7e-3", "1e10"]:
-    _, _, _, s = run(scene("stiff-load") + ["-f", factor + "*2*pi*sin(2*pi*x)", "-space", "cr", "-adapt_steps", "5"])
-    meshes[factor] = adapted_meshes(s)
-c.check(meshes["1"] == meshes["3.7e-3"] == meshes["1e10"], "stiff-load cr: the same adapted meshes with f scaled by 1, 3.7e-3, 1e10 (marked %s)" % (
-    ", ".join(str([m[2] for m in meshes[k]]) for k in meshes)))
+# Scaling the load: the same adapted meshes, tests/test_stiff.py.
 
 # The singular scene: u ~ r^(1/2) next to (1/2, 0).
 for el in ["cr", "p1"]:
