@@ -2,7 +2,7 @@
   - the same adapted meshes on 1 and 2 ranks (cells, DOFs, marked cells at every step) and the same final
     energy (1e-9 relative), also when the refined mesh is redistributed at every step (-adapt_imbalance 1),
     and on 1 and 3 ranks where thousands of indicators lie closer together than the solver's tolerance,
-    and with the load scaled by 3.7e-3 and 1e10, and on 1, 2 and 3 ranks on cells stretched 1000 : 1;
+    and on 1, 2 and 3 ranks on cells stretched 1000 : 1 (with the load scaled: tests/test_stiff.py);
   - every step refines, eta falls, eta bounds the energy error from above (the guaranteed bound) with
     efficiency index <= 3 at every step on the manufactured scenes, the last solution satisfies the KKT
     conditions, and the summary describes the last mesh (cells, DOFs, the "adapt" rows);
